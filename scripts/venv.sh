@@ -1,0 +1,34 @@
+#!/usr/bin/env bash
+# Creates (or refreshes) the project's virtual environment in .venv and installs the pinned
+# requirements plus this package in editable mode. Source it: it exports the ROS variables that
+# keep DDS traffic on this machine and puts .venv/bin first on PATH.
+set -euo pipefail
+repo_root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+venv="${UAV_PLANNER_VENV:-$repo_root/.venv}"
+python_bin="${PYTHON:-python3.11}"
+
+if ! command -v "$python_bin" >/dev/null 2>&1; then
+  echo "error: $python_bin not found; ROS 2 Jazzy wheels need Python 3.11 (set PYTHON=...)" >&2
+  return 1 2>/dev/null || exit 1
+fi
+
+stamp="$venv/.requirements.sha256"
+wanted="$(cat "$repo_root/requirements.txt" "$repo_root/setup.py" | sha256sum | cut -d' ' -f1)"
+if [ ! -x "$venv/bin/python" ] || [ "$(cat "$stamp" 2>/dev/null)" != "$wanted" ]; then
+  echo "Setting up $venv (pinned versions from requirements.txt) ..."
+  "$python_bin" -m venv "$venv"
+  "$venv/bin/python" -m pip install --quiet --upgrade pip
+  "$venv/bin/python" -m pip install --quiet -r "$repo_root/requirements.txt"
+  "$venv/bin/python" -m pip install --quiet --no-deps --no-build-isolation -e "$repo_root"
+  echo "$wanted" > "$stamp"
+fi
+
+export PATH="$venv/bin:$PATH"
+export VIRTUAL_ENV="$venv"
+# DDS stays on this machine; logs go to a temporary folder.
+export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
+export ROS_LOG_DIR="${ROS_LOG_DIR:-$(mktemp -d -t uav_planner_roslog.XXXXXX)}"
+export RMW_IMPLEMENTATION="${RMW_IMPLEMENTATION:-rmw_fastrtps_cpp}"
+# Compiled search kernels are cached next to the venv, so later runs start fast.
+export NUMBA_CACHE_DIR="${NUMBA_CACHE_DIR:-$venv/numba_cache}"
+export MPLBACKEND=Agg

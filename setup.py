@@ -1,0 +1,36 @@
+"""Build script for the uav_global_planner ament_python package."""
+
+from glob import glob
+import os
+
+from setuptools import find_packages, setup
+
+package_name = 'uav_global_planner'
+
+setup(
+    name=package_name,
+    version='0.1.0',
+    packages=find_packages(exclude=['test']),
+    data_files=[
+        ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
+        ('share/' + package_name, ['package.xml']),
+        (os.path.join('share', package_name, 'config'), glob('config/*.yaml')),
+        (os.path.join('share', package_name, 'config', 'scenes'), glob('config/scenes/*.yaml')),
+    ],
+    # Versions are pinned in requirements.txt only.
+    install_requires=['setuptools', 'numpy', 'scipy', 'pyyaml', 'numba', 'matplotlib'],
+    extras_require={'test': ['pytest', 'hypothesis', 'psutil', 'flake8']},
+    zip_safe=True,
+    maintainer='uav_global_planner maintainers',
+    maintainer_email='maintainers@uav-global-planner.invalid',
+    description='3D global path planner for quadcopters with a ROS 2 node.',
+    license='Apache-2.0',
+    entry_points={
+        'console_scripts': [
+            'uav-plan = uav_global_planner.cli.main:main',
+            'planner_node = uav_global_planner.ros.planner_node:main',
+            'scene_publisher = uav_global_planner.ros.scene_publisher:main',
+            'uav-demo = uav_global_planner.ros.demo:main',
+        ],
+    },
+)

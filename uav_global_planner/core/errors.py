@@ -1,0 +1,57 @@
+"""Typed planning failures, one class per failure a caller must tell apart.
+
+Each class carries the :class:`~uav_global_planner.core.status.PlanStatus` it maps to, so a
+caller can either ``except`` the precise class or read ``error.status``.
+"""
+
+from typing import ClassVar
+
+from uav_global_planner.core.status import PlanStatus
+
+
+class PlanningError(Exception):
+    """Base class of every failure the planner reports to its caller."""
+
+    status: ClassVar[PlanStatus] = PlanStatus.INVALID_INPUT
+
+
+class InvalidInputError(PlanningError, ValueError):
+    """Malformed input: non-finite numbers, wrong shapes, inconsistent settings."""
+
+    status = PlanStatus.INVALID_INPUT
+
+
+class StartOutsideMapError(PlanningError):
+    """The start lies outside the planning bounds."""
+
+    status = PlanStatus.START_OUTSIDE_MAP
+
+
+class GoalOutsideMapError(PlanningError):
+    """The goal lies outside the planning bounds."""
+
+    status = PlanStatus.GOAL_OUTSIDE_MAP
+
+
+class StartOccupiedError(PlanningError):
+    """The start node is within the safety margin of an obstacle."""
+
+    status = PlanStatus.START_OCCUPIED
+
+
+class GoalOccupiedError(PlanningError):
+    """The goal node is within the safety margin of an obstacle."""
+
+    status = PlanStatus.GOAL_OCCUPIED
+
+
+class NoValidPathError(PlanningError):
+    """The search exhausted every reachable node (or no safe smooth path exists)."""
+
+    status = PlanStatus.NO_VALID_PATH
+
+
+class PlanningTimeoutError(PlanningError):
+    """The search ran out of its expansion or time budget before reaching the goal."""
+
+    status = PlanStatus.TIMEOUT

@@ -1,0 +1,138 @@
+"""Result types of the planner: frozen dataclasses with numpy fields in metres and seconds."""
+
+from dataclasses import dataclass, field
+from typing import Optional, Tuple
+
+import numpy as np
+
+from uav_global_planner.core.status import PlanStatus
+
+_EMPTY_PATH = np.empty((0, 3))
+
+
+@dataclass(frozen=True, eq=False)
+class Trajectory:
+    """Time-parameterised smoothed path.
+
+    Attributes
+    ----------
+    times : numpy.ndarray, shape (M,)
+        Time from start of each sample [s], increasing from 0.
+    positions, velocities, accelerations : numpy.ndarray, shape (M, 3)
+        [m], [m/s], [m/s^2] in the planning frame.
+    """
+
+    times: np.ndarray
+    positions: np.ndarray
+    velocities: np.ndarray
+    accelerations: np.ndarray
+
+    @property
+    def duration_s(self) -> float:
+        """Time to fly the whole trajectory [s]."""
+        return float(self.times[-1]) if len(self.times) else 0.0
+
+
+@dataclass(frozen=True)
+class RepairedStretch:
+    """A stretch of the smoothed curve that had to be repaired to keep the safety margin.
+
+    Attributes
+    ----------
+    start_m, end_m : float
+        Arc-length interval of the repaired stretch on the final curve [m].
+    method : str
+        How it was repaired (for example ``'knots'`` or ``'polyline'``).
+    clearance_before_m : float
+        Smallest clearance of the unrepaired curve on that stretch [m].
+    """
+
+    start_m: float
+    end_m: float
+    method: str
+    clearance_before_m: float
+
+
+@dataclass(frozen=True, eq=False)
+class PlanResult:
+    """Everything one planning request produced; ``status`` says whether it succeeded.
+
+    Attributes
+    ----------
+    status : PlanStatus
+    message : str
+        Human-readable reason, naming the offending input on failure.
+    algorithm : str
+    start, goal : numpy.ndarray, shape (3,)
+        Requested start and goal [m] (NaN where the request had none usable).
+    path : numpy.ndarray, shape (N, 3)
+        Raw grid-node path [m], start node to goal node; empty on failure.
+    path_length_m : float
+        Length of ``path`` (eq. 15) [m]; NaN on failure.
+    expanded_nodes : int
+        Nodes taken off the open list by the search.
+    planning_time_s : float
+        Search time (eq. 14) [s].
+    resolution, safety_margin, adaptive_threshold : float
+        delta, gamma and eta used [m].
+    grid_build_time_s : float
+        Time spent building and inflating the grid for this request [s]; 0 when cached.
+    shortcut_path : numpy.ndarray, shape (K, 3)
+        Path after line-of-sight shortcutting [m] (equals ``path`` when shortcutting is off).
+    shortcut_length_m : float
+    trajectory : Trajectory or None
+        Smoothed, time-parameterised path; None on failure.
+    smoothed_length_m : float
+    min_clearance_m : float
+        Smallest distance from the smoothed curve to any obstacle [m].
+    min_clearance_point : numpy.ndarray, shape (3,)
+        Where that smallest distance occurs [m].
+    repaired_stretches : tuple of RepairedStretch
+    smoothing_time_s : float
+        Time for shortcutting, smoothing, clearance check and timing [s].
+    """
+
+    status: PlanStatus
+    message: str
+    algorithm: str
+    start: np.ndarray
+    goal: np.ndarray
+    path: np.ndarray = field(default_factory=lambda: _EMPTY_PATH)
+    path_length_m: float = float('nan')
+    expanded_nodes: int = 0
+    planning_time_s: float = 0.0
+    resolution: float = float('nan')
+    safety_margin: float = float('nan')
+    adaptive_threshold: float = float('nan')
+    grid_build_time_s: float = 0.0
+    shortcut_path: np.ndarray = field(default_factory=lambda: _EMPTY_PATH)
+    shortcut_length_m: float = float('nan')
+    trajectory: Optional[Trajectory] = None
+    smoothed_length_m: float = float('nan')
+    min_clearance_m: float = float('nan')
+    min_clearance_point: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
+    repaired_stretches: Tuple[RepairedStretch, ...] = ()
+    smoothing_time_s: float = 0.0
+
+    @property
+    def ok(self) -> bool:
+        """True when a safe path was found."""
+        return self.status is PlanStatus.OK
+
+    @property
+    def smoothed_path(self) -> np.ndarray:
+        """Positions of the smoothed curve [m], shape (M, 3); empty on failure."""
+        return self.trajectory.positions if self.trajectory is not None else _EMPTY_PATH
+
+    @property
+    def duration_s(self) -> float:
+        """Flight time of the trajectory [s]; NaN on failure."""
+        return self.trajectory.duration_s if self.trajectory is not None else float('nan')
+
+
+def polyline_length(points: np.ndarray) -> float:
+    """Sum of segment lengths of a polyline (eq. 15) [m]; 0 for fewer than two points."""
+    pts = np.asarray(points, dtype=np.float64)
+    if len(pts) < 2:
+        return 0.0
+    return float(np.sum(np.linalg.norm(np.diff(pts, axis=0), axis=1)))
