@@ -16,10 +16,17 @@ stamp="$venv/.requirements.sha256"
 wanted="$(cat "$repo_root/requirements.txt" "$repo_root/setup.py" | sha256sum | cut -d' ' -f1)"
 if [ ! -x "$venv/bin/python" ] || [ "$(cat "$stamp" 2>/dev/null)" != "$wanted" ]; then
   echo "Setting up $venv (pinned versions from requirements.txt) ..."
-  "$python_bin" -m venv "$venv"
-  "$venv/bin/python" -m pip install --quiet --upgrade pip
-  "$venv/bin/python" -m pip install --quiet -r "$repo_root/requirements.txt"
-  "$venv/bin/python" -m pip install --quiet --no-deps --no-build-isolation -e "$repo_root"
+  log="$(mktemp -t uav_planner_pip.XXXXXX)"
+  if ! { "$python_bin" -m venv "$venv" \
+         && "$venv/bin/python" -m pip install --upgrade pip \
+         && "$venv/bin/python" -m pip install -r "$repo_root/requirements.txt" \
+         && "$venv/bin/python" -m pip install --no-deps --no-build-isolation -e "$repo_root"; \
+       } >"$log" 2>&1; then
+    tail -n 40 "$log" >&2
+    echo "error: installing into $venv failed (full log: $log)" >&2
+    return 1 2>/dev/null || exit 1
+  fi
+  rm -f "$log"
   echo "$wanted" > "$stamp"
 fi
 

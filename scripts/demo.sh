@@ -1,0 +1,12 @@
+#!/usr/bin/env bash
+# The main job: starts planner_node with config/planner.yaml, publishes a scene's obstacles and
+# goal over ROS 2, prints the plan received and writes a 3D plot. Installs what it needs into
+# .venv first. Extra arguments go to uav-demo (try --help).
+set -euo pipefail
+repo_root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+# shellcheck source=venv.sh
+source "$repo_root/scripts/venv.sh"
+cd "$repo_root"
+# A domain of its own, so the demo never talks to another ROS graph on this machine.
+export ROS_DOMAIN_ID="${ROS_DOMAIN_ID:-$(( ($$ % 90) + 10 ))}"
+exec uav-demo "$@"

@@ -1,0 +1,408 @@
+"""Tests of the grid search (uav_global_planner.core.search).
+
+Costs are checked against an independent shortest-path computation: the 26-connected graph over
+the free nodes is built here with numpy and solved with scipy.sparse.csgraph.
+"""
+
+import json
+import math
+import os
+from pathlib import Path
+import re
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import shortest_path
+
+from uav_global_planner.core import search as search_module
+from uav_global_planner.core.errors import (GoalOccupiedError, InvalidInputError,
+                                            NoValidPathError, PlanningTimeoutError,
+                                            StartOccupiedError)
+from uav_global_planner.core.grid import VoxelGrid
+from uav_global_planner.core.inflation import blocked_mask
+from uav_global_planner.core.jit import JIT_ENABLED
+from uav_global_planner.core.obstacles import Box, ObstacleSet, PointSet, Sphere
+from uav_global_planner.core.search import (ALGORITHM_CODES, search, SearchResult,
+                                            SearchWorkspace)
+
+REPO = Path(__file__).resolve().parents[1]
+ALGORITHMS = ('dijkstra', 'astar', 'adaptive', 'octile')
+OPTIMAL = ('dijkstra', 'astar', 'octile')
+N_RANDOM_SCENES = 240
+# Relative tolerance of cost comparisons: sums of a few hundred step costs in float64.
+RTOL = 1e-9
+
+
+def graph_distances(blocked: np.ndarray, resolution: float, source: int) -> np.ndarray:
+    """Shortest 26-connected distance [m] from flat node ``source`` to every node (inf if cut)."""
+    shape = blocked.shape
+    ids = np.arange(blocked.size).reshape(shape)
+    free = ~blocked
+    rows, cols, weights = [], [], []
+    for offset in np.ndindex(3, 3, 3):
+        step = np.array(offset) - 1
+        # Each undirected edge once: only offsets whose first non-zero component is positive.
+        nonzero = step[step != 0]
+        if len(nonzero) == 0 or nonzero[0] < 0:
+            continue
+        src = tuple(slice(max(0, -s), n - max(0, s)) for s, n in zip(step, shape))
+        dst = tuple(slice(max(0, s), n - max(0, -s)) for s, n in zip(step, shape))
+        both = free[src] & free[dst]
+        rows.append(ids[src][both])
+        cols.append(ids[dst][both])
+        weights.append(np.full(int(both.sum()), resolution * math.sqrt(np.abs(step).sum())))
+    graph = coo_matrix((np.concatenate(weights), (np.concatenate(rows), np.concatenate(cols))),
+                       shape=(blocked.size, blocked.size)).tocsr()
+    return shortest_path(graph, method='D', directed=False, indices=source)
+
+
+def random_scene(seed: int):
+    """A small random grid with spheres, boxes and point sets, and free start and goal nodes.
+
+    Returns ``(blocked, resolution, eta, start, goal)`` with (i, j, k) start and goal indices.
+    """
+    rng = np.random.default_rng(seed)
+    while True:
+        resolution = float(rng.uniform(0.2, 0.5))
+        lo = rng.uniform(-2.0, 2.0, 3)
+        hi = lo + rng.uniform(0.5, 3.0, 3)
+        grid = VoxelGrid.from_bounds(lo, hi, resolution)
+        gamma = float(rng.uniform(0.0, 0.4))
+        obstacles = []
+        for _ in range(int(rng.integers(0, 6))):
+            kind = rng.integers(3)
+            if kind == 0:
+                obstacles.append(Sphere(rng.uniform(lo, hi), rng.uniform(0.1, 0.8)))
+            elif kind == 1:
+                corner = rng.uniform(lo, hi)
+                obstacles.append(Box(corner, corner + rng.uniform(0.05, 1.2, 3)))
+            else:
+                obstacles.append(PointSet(rng.uniform(lo, hi, (int(rng.integers(1, 40)), 3))))
+        if rng.random() < 0.25:
+            # A thin wall across the whole workspace, sometimes cutting it in two.
+            axis = int(rng.integers(3))
+            wall_lo, wall_hi = lo - 1.0, hi + 1.0
+            wall_lo[axis] = rng.uniform(lo[axis], hi[axis])
+            wall_hi[axis] = wall_lo[axis] + 0.05
+            obstacles.append(Box(wall_lo, wall_hi))
+        blocked = blocked_mask(grid, ObstacleSet(obstacles), gamma)
+        free = np.flatnonzero(~blocked)
+        if len(free):
+            break
+    start, goal = (grid.unravel(node) for node in rng.choice(free, 2))
+    return blocked, resolution, float(rng.uniform(0.0, 2.0)), start, goal
+
+
+def check_path(result: SearchResult, blocked: np.ndarray, resolution: float, start,
+               goal) -> None:
+    """Every structural property a search result must have."""
+    path = result.path_indices
+    assert path.dtype == np.int64 and path.ndim == 2 and path.shape[1] == 3
+    assert np.array_equal(path[0], start)
+    assert np.array_equal(path[-1], goal)
+    assert np.all(path >= 0) and np.all(path < blocked.shape)
+    assert not np.any(blocked[tuple(path.T)]), 'path crosses a blocked node'
+    steps = np.abs(np.diff(path, axis=0))
+    assert np.all(steps <= 1), 'consecutive nodes are not 26-neighbours'
+    axes = steps.sum(axis=1)
+    assert np.all(axes >= 1), 'path repeats a node'
+    assert result.cost_m == pytest.approx(float(np.sum(resolution * np.sqrt(axes))), rel=RTOL,
+                                          abs=1e-12)
+    assert result.expanded_nodes >= 1
+    assert result.search_time_s >= 0.0
+
+
+@pytest.mark.parametrize('seed', range(N_RANDOM_SCENES))
+def test_random_scene_matches_csgraph(seed):
+    blocked, resolution, eta, start, goal = random_scene(seed)
+    shape = blocked.shape
+    distance = graph_distances(blocked, resolution,
+                               int(np.ravel_multi_index(tuple(start), shape)))
+    optimum = distance[np.ravel_multi_index(tuple(goal), shape)]
+    workspace = SearchWorkspace(blocked)
+    for algorithm in ALGORITHMS:
+        if not np.isfinite(optimum):
+            with pytest.raises(NoValidPathError, match='expanded'):
+                workspace.search(start, goal, algorithm, resolution, eta)
+            continue
+        result = workspace.search(start, goal, algorithm, resolution, eta)
+        check_path(result, blocked, resolution, start, goal)
+        if algorithm in OPTIMAL:
+            assert result.cost_m == pytest.approx(optimum, rel=RTOL, abs=1e-12), algorithm
+        else:
+            assert result.cost_m >= optimum * (1.0 - RTOL)
+
+
+def test_random_scenes_cover_the_interesting_cases():
+    """The generator yields unreachable goals, start == goal and obstacle-free scenes."""
+    unreachable = same = clear = 0
+    for seed in range(N_RANDOM_SCENES):
+        blocked, resolution, _, start, goal = random_scene(seed)
+        source = int(np.ravel_multi_index(tuple(start), blocked.shape))
+        target = int(np.ravel_multi_index(tuple(goal), blocked.shape))
+        unreachable += not np.isfinite(graph_distances(blocked, resolution, source)[target])
+        same += source == target
+        clear += not blocked.any()
+    assert unreachable >= 5 and same >= 1 and clear >= 5
+
+
+def medium_scene():
+    """paper_medium.yaml built as the planner does: spheres inflated by gamma, snapped ends."""
+    import yaml
+    data = yaml.safe_load((REPO / 'config' / 'scenes' / 'paper_medium.yaml').read_text())
+    grid = VoxelGrid.from_bounds(data['bounds']['min'], data['bounds']['max'],
+                                 data['resolution'])
+    obstacles = ObstacleSet(Sphere(o['center'], o['radius']) for o in data['obstacles'])
+    blocked = blocked_mask(grid, obstacles, data['safety_margin'])
+    return (blocked, data['resolution'], data['adaptive_threshold'],
+            grid.world_to_index(data['start']), grid.world_to_index(data['goal']))
+
+
+def test_paper_medium_figures():
+    blocked, resolution, eta, start, goal = medium_scene()
+    workspace = SearchWorkspace(blocked)
+    results = {a: workspace.search(start, goal, a, resolution, eta) for a in ALGORITHMS}
+    for algorithm in OPTIMAL:
+        assert results[algorithm].cost_m == pytest.approx(19.367, abs=5e-4)
+    adaptive = results['adaptive']
+    assert 19.367 < adaptive.cost_m < 1.1 * 19.367
+    assert adaptive.expanded_nodes * 10 < results['astar'].expanded_nodes
+    assert results['octile'].expanded_nodes * 3 < results['astar'].expanded_nodes
+    assert results['astar'].expanded_nodes < results['dijkstra'].expanded_nodes
+
+
+def test_start_equals_goal_is_a_single_node():
+    blocked = np.zeros((4, 5, 6), dtype=bool)
+    for algorithm in ALGORITHMS:
+        result = search(blocked, (1, 2, 3), (1, 2, 3), algorithm, 0.5, 1.5)
+        assert result.path_indices.tolist() == [[1, 2, 3]]
+        assert result.cost_m == 0.0
+        assert result.expanded_nodes == 1
+
+
+def test_straight_and_diagonal_costs_on_an_empty_grid():
+    blocked = np.zeros((6, 6, 6), dtype=bool)
+    assert search(blocked, (0, 0, 0), (5, 0, 0), 'astar', 0.5, 1.5).cost_m == pytest.approx(2.5)
+    diagonal = search(blocked, (0, 0, 0), (5, 5, 5), 'octile', 0.5, 1.5)
+    assert diagonal.cost_m == pytest.approx(2.5 * math.sqrt(3.0))
+    assert len(diagonal.path_indices) == 6
+
+
+def test_expansion_budget():
+    blocked, resolution, eta, start, goal = medium_scene()
+    workspace = SearchWorkspace(blocked)
+    with pytest.raises(PlanningTimeoutError, match=r'max_expansions = 5\b.*expanding 5 nodes'):
+        workspace.search(start, goal, 'astar', resolution, eta, max_expansions=5)
+    needed = workspace.search(start, goal, 'astar', resolution, eta).expanded_nodes
+    exact = workspace.search(start, goal, 'astar', resolution, eta, max_expansions=needed)
+    assert exact.expanded_nodes == needed
+    with pytest.raises(PlanningTimeoutError, match=f'expanding {needed - 1} nodes'):
+        workspace.search(start, goal, 'astar', resolution, eta, max_expansions=needed - 1)
+
+
+def test_time_budget_on_a_large_grid():
+    blocked = np.zeros((100, 100, 100), dtype=bool)
+    with pytest.raises(PlanningTimeoutError, match='max_time_s') as caught:
+        search(blocked, (0, 0, 0), (99, 99, 99), 'dijkstra', 0.1, 1.5, max_time_s=1e-4)
+    expanded = int(re.search(r'expanding (\d+) nodes', str(caught.value)).group(1))
+    assert 0 < expanded < blocked.size
+
+
+def test_timeout_and_no_path_carry_their_status():
+    assert PlanningTimeoutError.status.value == 'timeout'
+    blocked = np.zeros((5, 5, 5), dtype=bool)
+    blocked[2] = True
+    with pytest.raises(NoValidPathError) as caught:
+        search(blocked, (0, 0, 0), (4, 4, 4), 'adaptive', 0.5, 1.5)
+    assert caught.value.status.value == 'no_valid_path'
+    assert 'all 50 nodes' in str(caught.value)
+
+
+def test_chunked_search_equals_one_call():
+    """A time budget splits the search into resumed chunks; the result must not change."""
+    blocked, resolution, eta, start, goal = medium_scene()
+    workspace = SearchWorkspace(blocked)
+    whole = workspace.search(start, goal, 'dijkstra', resolution, eta)
+    assert whole.expanded_nodes > 2 * search_module._CHUNK
+    chunked = workspace.search(start, goal, 'dijkstra', resolution, eta, max_time_s=600.0)
+    assert np.array_equal(whole.path_indices, chunked.path_indices)
+    assert whole.expanded_nodes == chunked.expanded_nodes
+    assert whole.cost_m == chunked.cost_m
+
+
+def _queries():
+    """Queries on paper_medium, including failures that leave a half-finished search behind."""
+    blocked, resolution, eta, start, goal = medium_scene()
+    free = np.argwhere(~blocked)
+    rng = np.random.default_rng(7)
+    queries = [(start, goal, a, 0) for a in ALGORITHMS]
+    queries.append((start, goal, 'astar', 3))
+    queries += [(free[a], free[b], ALGORITHMS[n % 4], 0)
+                for n, (a, b) in enumerate(rng.integers(len(free), size=(12, 2)))]
+    return blocked, resolution, eta, queries
+
+
+def _outcome(workspace, blocked, resolution, eta, query):
+    start, goal, algorithm, budget = query
+    try:
+        result = workspace.search(start, goal, algorithm, resolution, eta, max_expansions=budget)
+    except (PlanningTimeoutError, NoValidPathError) as error:
+        return type(error).__name__, str(error).split(' in ')[0]
+    return result.path_indices.tolist(), result.cost_m, result.expanded_nodes
+
+
+def test_same_query_twice_is_identical():
+    blocked, resolution, eta, start, goal = medium_scene()
+    workspace = SearchWorkspace(blocked)
+    for algorithm in ALGORITHMS:
+        first = workspace.search(start, goal, algorithm, resolution, eta)
+        second = workspace.search(start, goal, algorithm, resolution, eta)
+        assert np.array_equal(first.path_indices, second.path_indices)
+        assert first.expanded_nodes == second.expanded_nodes
+        assert first.cost_m == second.cost_m
+
+
+def test_reused_workspace_equals_fresh_workspaces():
+    blocked, resolution, eta, queries = _queries()
+    shared = SearchWorkspace(blocked)
+    for query in queries:
+        fresh = _outcome(SearchWorkspace(blocked), blocked, resolution, eta, query)
+        assert _outcome(shared, blocked, resolution, eta, query) == fresh
+
+
+def test_set_blocked_swaps_the_grid():
+    blocked, resolution, eta, queries = _queries()
+    other = blocked.copy()
+    other[:, :, 4] = True
+    other[20, 20, 4] = False
+    workspace = SearchWorkspace(blocked)
+    for grid in (other, blocked, other):
+        workspace.set_blocked(grid)
+        for query in queries[:4]:
+            assert (_outcome(workspace, grid, resolution, eta, query)
+                    == _outcome(SearchWorkspace(grid), grid, resolution, eta, query))
+    with pytest.raises(InvalidInputError, match='shape'):
+        workspace.set_blocked(blocked[1:])
+
+
+def test_generation_counter_wraps_around():
+    blocked, resolution, eta, queries = _queries()
+    workspace = SearchWorkspace(blocked)
+    expected = [_outcome(workspace, blocked, resolution, eta, q) for q in queries[:4]]
+    workspace._generation = search_module._MAX_GENERATION - 2
+    again = [_outcome(workspace, blocked, resolution, eta, q) for q in queries[:4]]
+    assert again == expected
+    assert workspace._generation < 10
+
+
+_SUBPROCESS_SCRIPT = """
+import json
+import numpy as np
+from uav_global_planner.core.jit import JIT_ENABLED
+from uav_global_planner.core.search import search
+blocked = np.zeros((9, 8, 7), dtype=bool)
+blocked[3:6, 1:8, 0:6] = True
+blocked[6, 0:3, 2] = True
+out = {'jit': JIT_ENABLED}
+for algorithm in ('dijkstra', 'astar', 'adaptive', 'octile'):
+    r = search(blocked, (0, 7, 0), (8, 0, 6), algorithm, 0.3, 0.8)
+    out[algorithm] = [r.path_indices.tolist(), r.cost_m, r.expanded_nodes]
+print(json.dumps(out))
+"""
+
+
+def _run_subprocess(disable_jit: bool) -> dict:
+    env = dict(os.environ)
+    env['PYTHONPATH'] = os.pathsep.join(filter(None, [str(REPO), env.get('PYTHONPATH')]))
+    env['UAV_PLANNER_DISABLE_JIT'] = '1' if disable_jit else '0'
+    done = subprocess.run([sys.executable, '-c', _SUBPROCESS_SCRIPT], env=env, check=True,
+                          capture_output=True, text=True, timeout=120)
+    return json.loads(done.stdout)
+
+
+def test_pure_python_fallback_matches_compiled():
+    plain = _run_subprocess(disable_jit=True)
+    assert plain.pop('jit') is False
+    compiled = _run_subprocess(disable_jit=False) if not JIT_ENABLED else None
+    blocked = np.zeros((9, 8, 7), dtype=bool)
+    blocked[3:6, 1:8, 0:6] = True
+    blocked[6, 0:3, 2] = True
+    for algorithm in ALGORITHMS:
+        r = search(blocked, (0, 7, 0), (8, 0, 6), algorithm, 0.3, 0.8)
+        here = [r.path_indices.tolist(), r.cost_m, r.expanded_nodes]
+        assert plain[algorithm] == here, algorithm
+        if compiled is not None:
+            assert compiled[algorithm] == here, algorithm
+
+
+def test_octile_heuristic_is_the_free_space_distance():
+    shape, resolution = (7, 6, 5), 0.3
+    blocked = np.zeros(shape, dtype=bool)
+    for source in [(0, 0, 0), (3, 2, 4), (6, 5, 2)]:
+        distance = graph_distances(blocked, resolution, int(np.ravel_multi_index(source, shape)))
+        for node in np.ndindex(*shape):
+            di, dj, dk = (abs(a - b) for a, b in zip(node, source))
+            h = search_module._heuristic(ALGORITHM_CODES['octile'], di, dj, dk, resolution, 0.0)
+            assert h == pytest.approx(distance[np.ravel_multi_index(node, shape)], rel=1e-12,
+                                      abs=1e-12)
+
+
+def test_heuristic_definitions():
+    h = search_module._heuristic
+    codes = ALGORITHM_CODES
+    assert h(codes['dijkstra'], 3, 4, 12, 0.5, 1.0) == 0.0
+    assert h(codes['astar'], 3, 4, 12, 0.5, 1.0) == pytest.approx(6.5)
+    # Euclidean 6.5 m > eta = 1 m: Manhattan 0.5 * 19; within eta = 7 m: Euclidean.
+    assert h(codes['adaptive'], 3, 4, 12, 0.5, 1.0) == pytest.approx(9.5)
+    assert h(codes['adaptive'], 3, 4, 12, 0.5, 7.0) == pytest.approx(6.5)
+    assert h(codes['adaptive'], 3, 4, 12, 0.5, 6.5) == pytest.approx(6.5)
+    expected = 0.5 * (math.sqrt(3) * 3 + math.sqrt(2) * 1 + 8)
+    assert h(codes['octile'], 12, 3, 4, 0.5, 1.0) == pytest.approx(expected)
+    assert h(codes['octile'], 3, 4, 12, 0.5, 1.0) == pytest.approx(expected)
+
+
+def test_invalid_inputs_are_rejected():
+    blocked = np.zeros((4, 4, 4), dtype=bool)
+    blocked[1, 1, 1] = True
+    workspace = SearchWorkspace(blocked)
+    ok = dict(algorithm='astar', resolution=0.5, adaptive_threshold=1.0)
+    with pytest.raises(InvalidInputError, match='algorithm'):
+        workspace.search((0, 0, 0), (3, 3, 3), 'bfs', 0.5, 1.0)
+    for bad in [(0, 0), (0, 0, 4), (-1, 0, 0), (0.0, 1.0, 2.0), 'abc']:
+        with pytest.raises(InvalidInputError, match='start_index'):
+            workspace.search(bad, (3, 3, 3), **ok)
+        with pytest.raises(InvalidInputError, match='goal_index'):
+            workspace.search((3, 3, 3), bad, **ok)
+    for name, value in [('resolution', 0.0), ('resolution', math.nan),
+                        ('adaptive_threshold', -1.0), ('max_time_s', -1.0),
+                        ('max_expansions', -1), ('max_expansions', 2.5)]:
+        with pytest.raises(InvalidInputError, match=name):
+            workspace.search((0, 0, 0), (3, 3, 3), **{**ok, name: value})
+    with pytest.raises(StartOccupiedError):
+        workspace.search((1, 1, 1), (3, 3, 3), **ok)
+    with pytest.raises(GoalOccupiedError):
+        workspace.search((0, 0, 0), (1, 1, 1), **ok)
+    for bad_grid in [np.zeros((4, 4), dtype=bool), np.zeros((4, 4, 4), dtype=np.uint8),
+                     np.zeros((0, 4, 4), dtype=bool), [[[False]]]]:
+        with pytest.raises(InvalidInputError, match='blocked'):
+            SearchWorkspace(bad_grid)
+
+
+def test_non_contiguous_grid_is_accepted():
+    blocked = np.zeros((6, 5, 4), dtype=bool)
+    blocked[2, :, 1:] = True
+    reference = search(blocked, (0, 0, 3), (5, 4, 3), 'dijkstra', 0.5, 1.0)
+    transposed = np.ascontiguousarray(blocked.transpose(2, 1, 0)).transpose(2, 1, 0)
+    assert not transposed.flags.c_contiguous
+    result = search(transposed, (0, 0, 3), (5, 4, 3), 'dijkstra', 0.5, 1.0)
+    assert result.cost_m == reference.cost_m
+    assert np.array_equal(result.path_indices, reference.path_indices)
+
+
+def test_jit_flag_is_a_bool():
+    assert isinstance(JIT_ENABLED, bool)
+    assert set(ALGORITHM_CODES) == set(ALGORITHMS)
+    assert len(set(ALGORITHM_CODES.values())) == 4

@@ -1,0 +1,76 @@
+"""Turning planner results into JSON-ready dictionaries and text tables."""
+
+import math
+from typing import Any, Dict, List, Sequence
+
+import numpy as np
+
+from uav_global_planner.core.result import PlanResult
+
+
+def finite_or_none(value: float) -> Any:
+    """``value`` as a float, or None where it is NaN or infinite (JSON has no NaN)."""
+    number = float(value)
+    return number if math.isfinite(number) else None
+
+
+def _points(array: np.ndarray) -> List[List[float]]:
+    return [[round(float(c), 6) for c in row] for row in np.asarray(array).reshape(-1, 3)]
+
+
+def result_to_dict(result: PlanResult) -> Dict[str, Any]:
+    """Every field of a plan result as plain JSON types, lengths in m and times in s."""
+    return {
+        'status': result.status.value,
+        'message': result.message,
+        'algorithm': result.algorithm,
+        'start': [finite_or_none(v) for v in result.start],
+        'goal': [finite_or_none(v) for v in result.goal],
+        'path': _points(result.path),
+        'path_length_m': finite_or_none(result.path_length_m),
+        'expanded_nodes': int(result.expanded_nodes),
+        'planning_time_s': finite_or_none(result.planning_time_s),
+        'grid_build_time_s': finite_or_none(result.grid_build_time_s),
+        'resolution': finite_or_none(result.resolution),
+        'safety_margin': finite_or_none(result.safety_margin),
+        'adaptive_threshold': finite_or_none(result.adaptive_threshold),
+        'shortcut_path': _points(result.shortcut_path),
+        'shortcut_length_m': finite_or_none(result.shortcut_length_m),
+        'smoothed_path': _points(result.smoothed_path),
+        'smoothed_length_m': finite_or_none(result.smoothed_length_m),
+        'min_clearance_m': finite_or_none(result.min_clearance_m),
+        'min_clearance_point': [finite_or_none(v) for v in result.min_clearance_point],
+        'repaired_stretches': [
+            {'start_m': s.start_m, 'end_m': s.end_m, 'method': s.method,
+             'clearance_before_m': finite_or_none(s.clearance_before_m)}
+            for s in result.repaired_stretches],
+        'duration_s': finite_or_none(result.duration_s),
+        'smoothing_time_s': finite_or_none(result.smoothing_time_s),
+    }
+
+
+def format_table(headers: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
+    """A plain-text table with right-aligned columns."""
+    widths = [max(len(str(cell)) for cell in column) for column in zip(headers, *rows)]
+    lines = ['  '.join(str(h).rjust(w) for h, w in zip(headers, widths)),
+             '  '.join('-' * w for w in widths)]
+    lines += ['  '.join(str(c).rjust(w) for c, w in zip(row, widths)) for row in rows]
+    return '\n'.join(lines)
+
+
+def format_summary(result: PlanResult) -> str:
+    """A short human-readable account of one plan."""
+    lines = [f'status: {result.status.value} ({result.message})',
+             f'algorithm: {result.algorithm}']
+    if result.ok:
+        lines += [
+            f'raw path: {len(result.path)} nodes, {result.path_length_m:.3f} m, '
+            f'{result.expanded_nodes} nodes expanded in {result.planning_time_s * 1e3:.2f} ms',
+            f'shortcut: {len(result.shortcut_path)} waypoints, {result.shortcut_length_m:.3f} m',
+            f'smoothed: {result.smoothed_length_m:.3f} m, min clearance '
+            f'{result.min_clearance_m:.3f} m (gamma {result.safety_margin} m), '
+            f'{len(result.repaired_stretches)} repaired stretch(es)',
+            f'trajectory: {result.duration_s:.2f} s; grid build {result.grid_build_time_s:.3f} s, '
+            f'smoothing + timing {result.smoothing_time_s * 1e3:.2f} ms',
+        ]
+    return '\n'.join(lines)
