@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Creates (or refreshes) the project's virtual environment in .venv and installs the pinned
 # requirements plus this package in editable mode. Source it: it exports the ROS variables that
-# keep DDS traffic on this machine and puts .venv/bin first on PATH.
-set -euo pipefail
+# keep DDS traffic on this machine and puts .venv/bin first on PATH. It sets no shell option
+# (no set -e), so a shell that sources it keeps its own error handling.
 repo_root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 venv="${UAV_PLANNER_VENV:-$repo_root/.venv}"
 python_bin="${PYTHON:-python3.11}"

@@ -53,6 +53,9 @@ def _parser() -> argparse.ArgumentParser:
     compare.add_argument('--json', action='store_true', help='print JSON')
     compare.add_argument('--plot', metavar='PNG', help='also draw every path into this file')
 
+    commands.add_parser('bench', help='performance figures of every shipped scene '
+                        '(uav-plan bench --help)', add_help=False)
+
     plot = commands.add_parser('plot', help='draw the raw and the smoothed path in 3D')
     _add_scene_options(plot)
     plot.add_argument('--algorithm', choices=ALGORITHMS, default='adaptive')
@@ -144,6 +147,10 @@ def _run_plot(args: argparse.Namespace, scene: Scene) -> int:
 
 def main(argv: Optional[List[str]] = None) -> int:
     """Entry point of ``uav-plan``; returns the process exit code."""
+    argv = sys.argv[1:] if argv is None else argv
+    if argv[:1] == ['bench']:
+        from uav_global_planner.cli.bench import main as bench_main
+        return bench_main(argv[1:])
     args = _parser().parse_args(argv)
     try:
         scene = _scene_from_args(args)

@@ -10,9 +10,21 @@ from uav_global_planner.core.status import PlanStatus
 
 
 class PlanningError(Exception):
-    """Base class of every failure the planner reports to its caller."""
+    """Base class of every failure the planner reports to its caller.
+
+    Parameters
+    ----------
+    message : str
+        What went wrong, naming the offending input.
+    expanded_nodes : int
+        Nodes the search expanded before failing (0 when it did not run).
+    """
 
     status: ClassVar[PlanStatus] = PlanStatus.INVALID_INPUT
+
+    def __init__(self, message: str = '', expanded_nodes: int = 0) -> None:
+        super().__init__(message)
+        self.expanded_nodes = int(expanded_nodes)
 
 
 class InvalidInputError(PlanningError, ValueError):

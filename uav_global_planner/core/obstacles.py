@@ -17,6 +17,10 @@ from uav_global_planner.core.errors import InvalidInputError
 from uav_global_planner.core.grid import as_point
 
 
+# Largest number of point-obstacle pairs evaluated at once (bounds temporary memory).
+_PAIR_BUDGET = 1 << 18
+
+
 @dataclass(frozen=True, eq=False)
 class Sphere:
     """Sphere obstacle.
@@ -117,11 +121,16 @@ def sphere_distance(points: np.ndarray, centers: np.ndarray, radii: np.ndarray) 
     -------
     numpy.ndarray, shape (...), +inf when S = 0.
     """
-    out = np.full(points.shape[:-1], np.inf)
-    for center, radius in zip(centers, radii):
-        gap = np.sqrt(np.sum((points - center) ** 2, axis=-1)) - radius
-        np.minimum(out, gap, out=out)
-    return np.maximum(out, 0.0)
+    flat = points.reshape(-1, 3)
+    out = np.full(len(flat), np.inf)
+    if len(radii):
+        # All spheres at once, in chunks of points so the (chunk, S) temporaries stay small.
+        step = max(1, _PAIR_BUDGET // len(radii))
+        for first in range(0, len(flat), step):
+            part = flat[first:first + step, None, :] - centers[None, :, :]
+            gaps = np.sqrt(np.sum(part * part, axis=-1)) - radii[None, :]
+            out[first:first + step] = np.min(gaps, axis=1)
+    return np.maximum(out, 0.0).reshape(points.shape[:-1])
 
 
 def box_distance(points: np.ndarray, mins: np.ndarray, maxs: np.ndarray) -> np.ndarray:

@@ -33,6 +33,9 @@ from uav_global_planner.core.timing import time_parameterize
 # inflated by gamma + delta * sqrt(3) / 2 the raw polyline itself keeps clearance >= gamma.
 _LIPSCHITZ_FACTOR = math.sqrt(3.0) / 2.0
 
+# Relative room, in cells, kept between an endpoint and the safety margin.
+_ENDPOINT_TOLERANCE = 1e-5
+
 # Points closer than this to their snapped node are taken as the node itself [m].
 _SNAP_TOLERANCE = 1e-9
 
@@ -162,7 +165,7 @@ class Planner:
             return self._plan(start, goal, name, base)
         except PlanningError as error:
             return PlanResult(status=error.status, message=str(error), **base,
-                              expanded_nodes=getattr(error, 'expanded_nodes', 0))
+                              expanded_nodes=error.expanded_nodes)
 
     def _plan(self, start, goal, name: str, base: dict) -> PlanResult:
         config = self._config
@@ -193,7 +196,8 @@ class Planner:
                 found = self._search(fallback, start_node, goal_node, name)
             except NoValidPathError:
                 raise NoValidPathError(f'{first_error}; and no path exists on the grid '
-                                       'inflated for edge clearance') from None
+                                       'inflated for edge clearance',
+                                       expanded_nodes=found.expanded_nodes) from None
             path = grid.index_to_world(found.path_indices)
             waypoints = _with_exact_endpoints(path, start_point, goal_point)
             smoothed = self._smooth(waypoints)
@@ -230,9 +234,11 @@ class Planner:
 
     def _smooth(self, waypoints: np.ndarray):
         config = self._config
+        grid = self._primary().grid
         return smooth_path(waypoints, self._obstacles, config.safety_margin, config.resolution,
                            shortcut=config.shortcut, mode=config.smoothing,
-                           sample_spacing=config.sample_spacing, index_step=config.index_step)
+                           sample_spacing=config.sample_spacing, index_step=config.index_step,
+                           bounds=(grid.bounds_min, grid.bounds_max))
 
     def _check_endpoints(self, inflated: _InflatedGrid, start: np.ndarray, goal: np.ndarray):
         grid = inflated.grid
@@ -247,7 +253,10 @@ class Planner:
                 f'{grid.bounds_max.tolist()}')
         start_node = grid.world_to_index(start)
         goal_node = grid.world_to_index(goal)
-        clearances = self._obstacles.distance(np.stack([start, goal]))
+        # The smoothed curve must keep gamma with a little room for rounding (the clearance
+        # check of smoothing needs it), so endpoints that close to the margin count as occupied.
+        clearances = self._obstacles.distance(np.stack([start, goal])) - (
+            _ENDPOINT_TOLERANCE * self._config.resolution)
         if inflated.blocked[tuple(start_node)] or clearances[0] <= gamma:
             raise StartOccupiedError(
                 f'start {start.tolist()} is within the safety margin: its clearance is '

@@ -464,16 +464,17 @@ class SearchWorkspace:
                 if status == _EXHAUSTED:
                     raise NoValidPathError(
                         f'no path from start to goal: all {expanded} nodes reachable from the '
-                        'start were expanded')
+                        'start were expanded', expanded_nodes=expanded)
                 elapsed = time.perf_counter() - began
                 if budget_n > 0 and expanded >= budget_n:
                     raise PlanningTimeoutError(
                         f'search ran out of its expansion budget (max_expansions = {budget_n}) '
-                        f'after expanding {expanded} nodes in {elapsed:.3f} s')
+                        f'after expanding {expanded} nodes in {elapsed:.3f} s',
+                        expanded_nodes=expanded)
                 if budget_s > 0.0 and elapsed >= budget_s:
                     raise PlanningTimeoutError(
                         f'search ran out of its time budget (max_time_s = {budget_s:g} s) after '
-                        f'expanding {expanded} nodes in {elapsed:.3f} s')
+                        f'expanding {expanded} nodes in {elapsed:.3f} s', expanded_nodes=expanded)
             flat_path = _trace(goal, self._parent, self._delta)
             cost = float(self._node_g[2 * goal])
             elapsed = time.perf_counter() - began

@@ -1,0 +1,476 @@
+"""Helpers for tests that run ROS nodes in real processes and talk to them over DDS.
+
+Every process gets its own ``ROS_DOMAIN_ID`` (derived from the test process id, never 0),
+``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` and a temporary ``ROS_LOG_DIR``, so concurrent test
+runs on one machine do not see each other. The test side uses its own rclpy ``Context`` per
+client, spun on a background thread, and never installs signal handlers (pytest keeps Ctrl-C).
+"""
+
+import itertools
+import os
+from pathlib import Path
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence
+
+from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import Point, PoseStamped, Quaternion, Vector3
+from nav_msgs.msg import Odometry
+import numpy as np
+from rcl_interfaces.msg import SetParametersResult
+import rclpy
+from rclpy.executors import (ExternalShutdownException, ShutdownException,
+                             SingleThreadedExecutor)
+from rclpy.parameter import Parameter, parameter_value_to_python
+from rclpy.parameter_client import AsyncParameterClient
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
+from std_msgs.msg import Header
+from visualization_msgs.msg import Marker, MarkerArray
+
+from uav_global_planner.core.planner import densify
+from uav_global_planner.ros import conversions as conv
+
+REPO_ROOT = Path(__file__).resolve().parents[1]
+PLANNER_YAML = REPO_ROOT / 'config' / 'planner.yaml'
+READY_TEXT = 'planner ready'
+NODE_NAME = 'global_planner'
+
+# Start-up of a node: Python imports, loading the cached kernels, building the grid. Generous,
+# because a cold numba cache compiles for tens of seconds on a slow machine.
+STARTUP_TIMEOUT_S = 120.0
+
+LATCHED_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
+                         reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+OBSTACLES_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
+                           reliability=ReliabilityPolicy.RELIABLE,
+                           durability=DurabilityPolicy.TRANSIENT_LOCAL)
+RELIABLE_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=50,
+                          reliability=ReliabilityPolicy.RELIABLE,
+                          durability=DurabilityPolicy.VOLATILE)
+SENSOR_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=5,
+                        reliability=ReliabilityPolicy.BEST_EFFORT,
+                        durability=DurabilityPolicy.VOLATILE)
+
+_domain_counter = itertools.count()
+
+# Domain ids that are safe on Linux with the default DDS port mapping; 0 is everyone's default.
+_DOMAIN_IDS = tuple(range(1, 102)) + tuple(range(215, 233))
+
+#: Namespace of this test run's planner nodes. Should another test run on this machine draw the
+#: same domain id at the same time, its topics still do not cross ours.
+RUN_NAMESPACE = f'/uav_test_{os.getpid()}'
+
+
+def unique_domain_id() -> int:
+    """A ROS domain id that differs per test process and per call (never 0).
+
+    The process id picks a starting point among the safe ids, so concurrent test runs most
+    likely differ; each call then takes the next id, so the tests of one run never share one.
+    """
+    start = (os.getpid() * 7919) % len(_DOMAIN_IDS)
+    return _DOMAIN_IDS[(start + next(_domain_counter)) % len(_DOMAIN_IDS)]
+
+
+def ros_environment(domain_id: int) -> Dict[str, str]:
+    """Environment of a child process: own domain, localhost discovery, temporary logs."""
+    env = dict(os.environ)
+    env['ROS_DOMAIN_ID'] = str(domain_id)
+    env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    env.pop('ROS_STATIC_PEERS', None)
+    env['ROS_LOG_DIR'] = tempfile.mkdtemp(prefix='uav_planner_test_roslog_')
+    env.setdefault('RMW_IMPLEMENTATION', 'rmw_fastrtps_cpp')
+    env['PYTHONUNBUFFERED'] = '1'
+    env['RCUTILS_COLORIZED_OUTPUT'] = '0'
+    return env
+
+
+class NodeProcess:
+    """A ROS process started with merged stdout/stderr, read line by line on a thread.
+
+    Parameters
+    ----------
+    command : sequence of str
+    env : mapping
+        Full environment of the child (see :func:`ros_environment`).
+    """
+
+    def __init__(self, command: Sequence[str], env: Mapping[str, str]) -> None:
+        self.command = list(command)
+        self._lines: List[str] = []
+        self._changed = threading.Condition()
+        self.process = subprocess.Popen(
+            self.command, env=dict(env), stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+            stdin=subprocess.DEVNULL, text=True, bufsize=1,
+            # Own session: a Ctrl-C in the terminal goes to pytest, which stops us cleanly.
+            start_new_session=True)
+        self._reader = threading.Thread(target=self._read, daemon=True)
+        self._reader.start()
+
+    def _read(self) -> None:
+        assert self.process.stdout is not None
+        for line in self.process.stdout:
+            with self._changed:
+                self._lines.append(line.rstrip('\n'))
+                self._changed.notify_all()
+        with self._changed:
+            self._changed.notify_all()
+
+    @property
+    def output(self) -> str:
+        """Everything the process printed so far."""
+        with self._changed:
+            return '\n'.join(self._lines)
+
+    def wait_for_output(self, text: str, timeout_s: float) -> None:
+        """Wait until a line containing ``text`` appears.
+
+        Raises
+        ------
+        AssertionError
+            On timeout or when the process exits first, with its output.
+        """
+        deadline = time.monotonic() + timeout_s
+        with self._changed:
+            while not any(text in line for line in self._lines):
+                if self.process.poll() is not None and not self._reader.is_alive():
+                    raise AssertionError(
+                        f'process exited with {self.process.returncode} before printing '
+                        f'{text!r}:\n{self.output_unlocked()}')
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    raise AssertionError(
+                        f'no {text!r} within {timeout_s} s:\n{self.output_unlocked()}')
+                self._changed.wait(min(remaining, 0.2))
+
+    def output_unlocked(self) -> str:
+        """Output without taking the lock (for use while holding it)."""
+        return '\n'.join(self._lines)
+
+    def stop(self, sig: int = signal.SIGINT, timeout_s: float = 15.0) -> int:
+        """Send ``sig`` and wait for the exit; kill after ``timeout_s``.
+
+        Returns
+        -------
+        int
+            The exit code.
+
+        Raises
+        ------
+        AssertionError
+            When the process had to be killed.
+        """
+        if self.process.poll() is None:
+            self.process.send_signal(sig)
+            try:
+                self.process.wait(timeout_s)
+            except subprocess.TimeoutExpired:
+                self.process.kill()
+                self.process.wait()
+                self._reader.join(5.0)
+                raise AssertionError(
+                    f'process ignored signal {sig} for {timeout_s} s:\n{self.output}') from None
+        self._reader.join(5.0)
+        return self.process.returncode
+
+    def kill(self) -> None:
+        """Kill the process if it still runs (fixture clean-up after a failed test)."""
+        if self.process.poll() is None:
+            self.process.kill()
+            self.process.wait()
+
+
+def planner_command(namespace: Optional[str] = None,
+                    parameters: Optional[Mapping[str, Any]] = None,
+                    params_file: Optional[Path] = PLANNER_YAML,
+                    executable: Optional[str] = None) -> List[str]:
+    """Command line of a planner node.
+
+    Parameters
+    ----------
+    namespace : str, optional
+        ROS namespace, for example ``'/second'``.
+    parameters : mapping, optional
+        ``-p name:=value`` overrides; values are written in YAML syntax.
+    params_file : Path, optional
+        ``--params-file``; the shipped config/planner.yaml by default.
+    executable : str, optional
+        An installed ``planner_node`` script; default ``python -m`` on the module.
+    """
+    command = ([executable] if executable
+               else [sys.executable, '-m', 'uav_global_planner.ros.planner_node'])
+    command.append('--ros-args')
+    if params_file is not None:
+        command += ['--params-file', str(params_file)]
+    if namespace:
+        command += ['-r', f'__ns:={namespace}']
+    for name, value in (parameters or {}).items():
+        command += ['-p', f'{name}:={_yaml_value(value)}']
+    return command
+
+
+def _yaml_value(value: Any) -> str:
+    if isinstance(value, bool):
+        return 'true' if value else 'false'
+    if isinstance(value, float):
+        return repr(value)
+    if isinstance(value, (list, tuple)):
+        return '[' + ', '.join(_yaml_value(v) for v in value) + ']'
+    return str(value)
+
+
+def start_planner(domain_id: int, wait: bool = True, **options: Any) -> NodeProcess:
+    """Start a planner node process and (by default) wait for its ready line."""
+    node = NodeProcess(planner_command(**options), ros_environment(domain_id))
+    if wait:
+        try:
+            node.wait_for_output(READY_TEXT, STARTUP_TIMEOUT_S)
+        except AssertionError:
+            node.kill()
+            raise
+    return node
+
+
+def assert_clean_exit(node: NodeProcess, code: int) -> None:
+    """Exit code 0 and no Python traceback in the output."""
+    output = node.output
+    assert code == 0, f'exit code {code}:\n{output}'
+    assert 'Traceback' not in output, output
+
+
+# --------------------------------------------------------------------------------------------
+# The test side of the conversation
+# --------------------------------------------------------------------------------------------
+
+def wait_until(predicate: Callable[[], Any], timeout_s: float, what: str,
+               period_s: float = 0.02) -> Any:
+    """Poll ``predicate`` until it returns something truthy; return that.
+
+    Raises
+    ------
+    AssertionError
+        After ``timeout_s``, naming ``what``.
+    """
+    deadline = time.monotonic() + timeout_s
+    while True:
+        value = predicate()
+        if value:
+            return value
+        if time.monotonic() > deadline:
+            raise AssertionError(f'timed out after {timeout_s} s waiting for {what}')
+        time.sleep(period_s)
+
+
+class Recorder:
+    """Keeps every message of one subscription, for waiting and inspection."""
+
+    def __init__(self) -> None:
+        self._messages: List[Any] = []
+        self._changed = threading.Condition()
+
+    def __call__(self, msg: Any) -> None:
+        with self._changed:
+            self._messages.append(msg)
+            self._changed.notify_all()
+
+    @property
+    def messages(self) -> List[Any]:
+        """A copy of the messages received so far."""
+        with self._changed:
+            return list(self._messages)
+
+    def mark(self) -> int:
+        """Number of messages so far; pass it as ``after`` to wait only for newer ones."""
+        with self._changed:
+            return len(self._messages)
+
+    def wait_for(self, predicate: Callable[[Any], bool] = lambda msg: True,
+                 timeout_s: float = 10.0, after: int = 0, what: str = 'a message') -> Any:
+        """First message at index >= ``after`` for which ``predicate`` holds."""
+        deadline = time.monotonic() + timeout_s
+        with self._changed:
+            index = after
+            while True:
+                while index < len(self._messages):
+                    if predicate(self._messages[index]):
+                        return self._messages[index]
+                    index += 1
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    raise AssertionError(f'timed out after {timeout_s} s waiting for {what}')
+                self._changed.wait(remaining)
+
+
+class RosClient:
+    """A test-side rclpy node in its own context, spun on a background thread.
+
+    Parameters
+    ----------
+    domain_id : int
+    name : str
+        Node name.
+    """
+
+    def __init__(self, domain_id: int, name: str = 'test_client') -> None:
+        # The test process is not started through ros_environment(); set what DDS reads here.
+        os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context, domain_id=domain_id,
+                   signal_handler_options=SignalHandlerOptions.NO)
+        self.node = rclpy.create_node(name, context=self.context)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self._thread = threading.Thread(target=self._spin, daemon=True)
+        self._thread.start()
+
+    def _spin(self) -> None:
+        try:
+            self.executor.spin()
+        except (ExternalShutdownException, ShutdownException):
+            pass
+
+    def close(self) -> None:
+        """Stop spinning and release the context."""
+        self.executor.shutdown(timeout_sec=2.0)
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+        self._thread.join(5.0)
+
+    def record(self, msg_type: Any, topic: str, qos: QoSProfile = RELIABLE_QOS) -> Recorder:
+        """Subscribe and keep every message."""
+        recorder = Recorder()
+        self.node.create_subscription(msg_type, topic, recorder, qos)
+        return recorder
+
+    def publisher(self, msg_type: Any, topic: str, qos: QoSProfile = RELIABLE_QOS,
+                  wait_for_subscribers: int = 1, timeout_s: float = 15.0):
+        """A publisher, returned once ``wait_for_subscribers`` subscriptions matched."""
+        publisher = self.node.create_publisher(msg_type, topic, qos)
+        wait_until(lambda: publisher.get_subscription_count() >= wait_for_subscribers,
+                   timeout_s, f'{wait_for_subscribers} subscriber(s) on {topic}')
+        return publisher
+
+    def parameters(self, remote_node: str) -> 'ParameterHelper':
+        """Parameter services of ``remote_node`` (fully qualified name)."""
+        return ParameterHelper(self.node, remote_node)
+
+    def now_ns(self) -> int:
+        """Current ROS time of the client [ns]."""
+        return self.node.get_clock().now().nanoseconds
+
+
+def wait_future(future, timeout_s: float, what: str) -> Any:
+    """Result of an rclpy future completed by the background executor."""
+    done = threading.Event()
+    future.add_done_callback(lambda _: done.set())
+    if not done.wait(timeout_s):
+        raise AssertionError(f'timed out after {timeout_s} s waiting for {what}')
+    return future.result()
+
+
+class ParameterHelper:
+    """Synchronous wrappers around :class:`AsyncParameterClient` for tests."""
+
+    def __init__(self, node, remote_node: str) -> None:
+        self.remote_node = remote_node
+        self.client = AsyncParameterClient(node, remote_node)
+        wait_until(lambda: self.client.services_are_ready(), 15.0,
+                   f'parameter services of {remote_node}')
+
+    def set(self, values: Mapping[str, Any], timeout_s: float = 5.0) -> List[SetParametersResult]:
+        """Set parameters one by one (as ``ros2 param set``); one result per parameter."""
+        parameters = [Parameter(name, value=value) for name, value in values.items()]
+        response = wait_future(self.client.set_parameters(parameters), timeout_s,
+                               f'set_parameters {list(values)}')
+        return list(response.results)
+
+    def set_atomically(self, values: Mapping[str, Any],
+                       timeout_s: float = 5.0) -> SetParametersResult:
+        """Set several parameters all at once."""
+        parameters = [Parameter(name, value=value) for name, value in values.items()]
+        response = wait_future(self.client.set_parameters_atomically(parameters), timeout_s,
+                               f'set_parameters_atomically {list(values)}')
+        return response.result
+
+    def get(self, names: Sequence[str], timeout_s: float = 5.0) -> Dict[str, Any]:
+        """Current values, as plain Python."""
+        response = wait_future(self.client.get_parameters(list(names)), timeout_s,
+                               f'get_parameters {list(names)}')
+        return {name: parameter_value_to_python(value)
+                for name, value in zip(names, response.values)}
+
+
+# --------------------------------------------------------------------------------------------
+# Messages and checks
+# --------------------------------------------------------------------------------------------
+
+def stamp(ns: int = 0) -> Time:
+    """``builtin_interfaces/Time`` of integer nanoseconds."""
+    return conv.time_from_ns(ns)
+
+
+def pose_msg(position: Sequence[float], frame_id: str = 'map',
+             orientation: Sequence[float] = (0.0, 0.0, 0.0, 1.0)) -> PoseStamped:
+    """A ``PoseStamped`` (stamp 0: the planner uses the latest message anyway)."""
+    msg = PoseStamped()
+    msg.header = Header(frame_id=frame_id)
+    msg.pose.position = Point(x=float(position[0]), y=float(position[1]),
+                              z=float(position[2]))
+    msg.pose.orientation = Quaternion(x=float(orientation[0]), y=float(orientation[1]),
+                                      z=float(orientation[2]), w=float(orientation[3]))
+    return msg
+
+
+def odom_msg(position: Sequence[float], frame_id: str = 'map') -> Odometry:
+    """An ``Odometry`` at ``position``."""
+    msg = Odometry()
+    msg.header = Header(frame_id=frame_id)
+    msg.child_frame_id = 'base_link'
+    msg.pose.pose = pose_msg(position, frame_id).pose
+    return msg
+
+
+def marker(ns: str, marker_id: int, marker_type: int, center: Sequence[float],
+           scale: Sequence[float], frame_id: str = 'map', action: int = Marker.ADD,
+           orientation: Sequence[float] = (0.0, 0.0, 0.0, 1.0)) -> Marker:
+    """One marker (SPHERE: scale = diameter; CUBE: edge lengths)."""
+    msg = Marker()
+    msg.header = Header(frame_id=frame_id)
+    msg.ns, msg.id, msg.type, msg.action = ns, marker_id, marker_type, action
+    msg.pose = pose_msg(center, frame_id, orientation).pose
+    msg.scale = Vector3(x=float(scale[0]), y=float(scale[1]), z=float(scale[2]))
+    msg.color.a = 1.0
+    return msg
+
+
+def marker_array(*markers: Marker) -> MarkerArray:
+    """A ``MarkerArray`` of the given markers."""
+    msg = MarkerArray()
+    msg.markers = list(markers)
+    return msg
+
+
+def diagnostics_of(node_fqn: str, msg: DiagnosticArray) -> Optional[Dict[str, str]]:
+    """Key values of the planner status of ``node_fqn`` in ``msg`` (None when absent).
+
+    The status message and level are added under ``_message`` and ``_level``.
+    """
+    for status, values in conv.diagnostic_values(msg):
+        if status.name.startswith(f'{node_fqn}: '):
+            values = dict(values)
+            values['_message'] = status.message
+            values['_level'] = int.from_bytes(status.level, 'little')
+            return values
+    return None
+
+
+def min_clearance(points: np.ndarray, obstacles, spacing_m: float = 0.01) -> float:
+    """Smallest distance [m] from the polyline through ``points`` to the obstacles."""
+    dense = densify(np.asarray(points, dtype=np.float64).reshape(-1, 3), spacing_m)
+    return float(np.min(obstacles.distance(dense)))
