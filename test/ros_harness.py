@@ -20,7 +20,7 @@ from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Point, PoseStamped, Quaternion, Vector3
-from nav_msgs.msg import Odometry
+from nav_msgs.msg import Odometry, Path as PathMsg
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
 import rclpy
@@ -128,8 +128,13 @@ class NodeProcess:
         with self._changed:
             return '\n'.join(self._lines)
 
-    def wait_for_output(self, text: str, timeout_s: float) -> None:
-        """Wait until a line containing ``text`` appears.
+    def mark(self) -> int:
+        """Number of output lines so far; pass it as ``after`` to look only at newer ones."""
+        with self._changed:
+            return len(self._lines)
+
+    def wait_for_output(self, text: str, timeout_s: float, after: int = 0) -> str:
+        """Wait until a line containing ``text`` appears (at index >= ``after``); return it.
 
         Raises
         ------
@@ -138,7 +143,10 @@ class NodeProcess:
         """
         deadline = time.monotonic() + timeout_s
         with self._changed:
-            while not any(text in line for line in self._lines):
+            while True:
+                found = [line for line in self._lines[after:] if text in line]
+                if found:
+                    return found[0]
                 if self.process.poll() is not None and not self._reader.is_alive():
                     raise AssertionError(
                         f'process exited with {self.process.returncode} before printing '
@@ -237,6 +245,26 @@ def start_planner(domain_id: int, wait: bool = True, **options: Any) -> NodeProc
     return node
 
 
+def scene_publisher_command(scene: str, namespace: Optional[str] = None,
+                            options: Sequence[str] = ('--no-start', '--no-goal')) -> List[str]:
+    """Command line of a ``scene_publisher`` for ``scene`` (file or shipped scene name).
+
+    By default it publishes only the obstacles and keeps running, as a map server would.
+    """
+    command = [sys.executable, '-m', 'uav_global_planner.ros.scene_publisher', str(scene),
+               *options, '--ros-args']
+    if namespace:
+        command += ['-r', f'__ns:={namespace}']
+    return command
+
+
+def start_scene_publisher(domain_id: int, scene: str, namespace: Optional[str] = None,
+                          options: Sequence[str] = ('--no-start', '--no-goal')) -> NodeProcess:
+    """Start a ``scene_publisher`` process; it logs its scene once the obstacles are out."""
+    return NodeProcess(scene_publisher_command(scene, namespace, options),
+                       ros_environment(domain_id))
+
+
 def assert_clean_exit(node: NodeProcess, code: int) -> None:
     """Exit code 0 and no Python traceback in the output."""
     output = node.output
@@ -326,6 +354,7 @@ class RosClient:
         self.node = rclpy.create_node(name, context=self.context)
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
+        self._closing = False
         self._thread = threading.Thread(target=self._spin, daemon=True)
         self._thread.start()
 
@@ -334,10 +363,19 @@ class RosClient:
             self.executor.spin()
         except (ExternalShutdownException, ShutdownException):
             pass
+        except Exception:  # noqa: BLE001 - handles destroyed while closing
+            if not self._closing:
+                raise
 
     def close(self) -> None:
-        """Stop spinning and release the context."""
+        """Stop spinning, then release the node and the context.
+
+        The spin thread is joined before the node is destroyed: destroying it while the
+        executor still waits on its guard conditions raises ``InvalidHandle`` in that thread.
+        """
+        self._closing = True
         self.executor.shutdown(timeout_sec=2.0)
+        self._thread.join(5.0)
         self.node.destroy_node()
         rclpy.try_shutdown(context=self.context)
         self._thread.join(5.0)
@@ -474,3 +512,119 @@ def min_clearance(points: np.ndarray, obstacles, spacing_m: float = 0.01) -> flo
     """Smallest distance [m] from the polyline through ``points`` to the obstacles."""
     dense = densify(np.asarray(points, dtype=np.float64).reshape(-1, 3), spacing_m)
     return float(np.min(obstacles.distance(dense)))
+
+
+# --------------------------------------------------------------------------------------------
+# One planner node as seen from the test
+# --------------------------------------------------------------------------------------------
+
+#: QoS of the test-side publishers of each planner input topic.
+INPUT_QOS = {'goal_pose': RELIABLE_QOS, 'start_pose': RELIABLE_QOS, 'odom': SENSOR_QOS,
+             'obstacles': OBSTACLES_QOS, 'obstacle_cloud': SENSOR_QOS}
+
+
+class PlannerClient:
+    """The test side of one planner node: its outputs, diagnostics, inputs and parameters.
+
+    Publishers are created on first use, so a test that leaves an input to another process
+    (for example the obstacles to a ``scene_publisher``) does not latch its own.
+
+    Parameters
+    ----------
+    client : RosClient
+    namespace : str
+        Namespace of the planner node ('' or '/' for the root).
+    diagnostics : Recorder
+        The client's recording of ``/diagnostics`` (shared by every planner of a test).
+    process : NodeProcess, optional
+        The node's process, for its log lines.
+    """
+
+    def __init__(self, client: RosClient, namespace: str, diagnostics: Recorder,
+                 process: Optional[NodeProcess] = None) -> None:
+        self.client = client
+        self.process = process
+        self.prefix = namespace.rstrip('/') + '/'
+        self.fqn = self.prefix + NODE_NAME
+        self.diagnostics = diagnostics
+        self.plans = client.record(PathMsg, self.prefix + 'plan', LATCHED_QOS)
+        self.markers = client.record(MarkerArray, self.prefix + 'planner_markers', LATCHED_QOS)
+        self._publishers: Dict[str, Any] = {}
+        self._params: Optional[ParameterHelper] = None
+
+    @property
+    def params(self) -> 'ParameterHelper':
+        """Parameter services of the node (waits for them on first use)."""
+        if self._params is None:
+            self._params = self.client.parameters(self.fqn)
+        return self._params
+
+    def publish(self, topic: str, msg: Any) -> None:
+        """Publish ``msg`` on the planner input ``topic`` (relative name, e.g. 'goal_pose')."""
+        publisher = self._publishers.get(topic)
+        if publisher is None:
+            publisher = self.client.publisher(type(msg), self.prefix + topic, INPUT_QOS[topic])
+            self._publishers[topic] = publisher
+        publisher.publish(msg)
+
+    def diag(self, msg: DiagnosticArray) -> Optional[Dict[str, str]]:
+        """This node's key values in ``msg`` plus ``_stamp`` [ns], or None."""
+        values = diagnostics_of(self.fqn, msg)
+        if values is not None:
+            values['_stamp'] = conv.time_to_ns(msg.header.stamp)
+        return values
+
+    def wait_diag(self, after: int, event: str, timeout_s: float = 20.0,
+                  check: Callable[[Dict[str, str]], bool] = lambda values: True,
+                  what: str = '') -> Dict[str, str]:
+        """First diagnostics entry of this node after ``after`` with the given event."""
+        def matches(msg: DiagnosticArray) -> bool:
+            values = self.diag(msg)
+            return values is not None and values.get('event') == event and check(values)
+        msg = self.diagnostics.wait_for(matches, timeout_s, after,
+                                        what or f'{event} diagnostics of {self.fqn}')
+        return self.diag(msg)
+
+    def diag_events(self, after: int, event: str) -> List[Dict[str, str]]:
+        """Every diagnostics entry of this node after ``after`` with the given event."""
+        found = []
+        for msg in self.diagnostics.messages[after:]:
+            values = self.diag(msg)
+            if values is not None and values.get('event') == event:
+                found.append(values)
+        return found
+
+    def plan_to(self, goal: Sequence[float],
+                orientation: Sequence[float] = (0.0, 0.0, 0.0, 1.0),
+                frame_id: str = 'map', timeout_s: float = 20.0):
+        """Send a goal; return the diagnostics of its plan and the plan (None on failure).
+
+        Replans of an older goal (for new parameters or obstacles) that end meanwhile are
+        skipped: only a plan with reason 'new goal' answers the goal.
+        """
+        mark = self.diagnostics.mark()
+        self.publish('goal_pose', pose_msg(goal, frame_id, orientation))
+        values = self.wait_diag(mark, 'plan', timeout_s,
+                                check=lambda values: values['reason'] == 'new goal')
+        return values, self.plan_for(values)
+
+    def plan_for(self, values: Mapping[str, Any]) -> Optional[PathMsg]:
+        """The plan published with these diagnostics (same stamp), or None on failure."""
+        if values['status'] != 'ok':
+            return None
+        stamp_ns = values['_stamp']
+        return self.plans.wait_for(lambda m: conv.time_to_ns(m.header.stamp) == stamp_ns,
+                                   5.0, what='the plan of the diagnostics')
+
+    def wait_obstacle_count(self, count: int, after: int = 0,
+                            timeout_s: float = 10.0) -> MarkerArray:
+        """Wait until ``planner_markers`` (after ``after``) shows ``count`` obstacles."""
+        def shown(markers: MarkerArray) -> bool:
+            return sum(m.ns == 'obstacles' for m in markers.markers) == count
+        return self.markers.wait_for(shown, timeout_s, after, f'{count} obstacles in use')
+
+    def set_obstacles(self, msg: MarkerArray, expected_obstacles: int) -> None:
+        """Publish markers; return once the node shows that many obstacles."""
+        mark = self.markers.mark()
+        self.publish('obstacles', msg)
+        self.wait_obstacle_count(expected_obstacles, mark)

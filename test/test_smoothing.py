@@ -7,7 +7,6 @@ the returned curve, sampled by arc length at delta / 20.
 
 import math
 from pathlib import Path
-import time
 
 import numpy as np
 import pytest
@@ -22,7 +21,7 @@ from uav_global_planner.core.inflation import blocked_mask
 from uav_global_planner.core.obstacles import Box, ObstacleSet, PointSet, Sphere
 from uav_global_planner.core.result import polyline_length
 from uav_global_planner.core.smoothing import (
-    CHECK_SPACING_FRACTION, shortcut_path, smooth_path, SmoothedPath)
+    shortcut_path, smooth_path, SmoothedPath)
 
 SCENES = Path(__file__).resolve().parents[1] / 'config' / 'scenes'
 LIPSCHITZ = math.sqrt(3.0) / 2.0
@@ -499,7 +498,7 @@ def test_invalid_inputs():
 
 
 @pytest.mark.parametrize('name', ['paper_medium', 'paper_high'])
-def test_paper_scenes_shorter_and_fast(name):
+def test_paper_scenes_smoothed_shorter_than_raw(name):
     grid, obstacles, gamma, start, goal = load_scene(name)
     raw = csgraph_path(grid, blocked_mask(grid, obstacles, gamma), start, goal)
     delta = grid.resolution
@@ -510,11 +509,3 @@ def test_paper_scenes_shorter_and_fast(name):
     for mode in ('index', 'none'):
         check_smoothed(smooth_path(raw, obstacles, gamma, delta, mode=mode), raw, obstacles,
                        gamma, delta)
-    # Generous bound for loaded CI machines; the target is a few milliseconds.
-    elapsed = []
-    for _ in range(5):
-        started = time.perf_counter()
-        smooth_path(raw, obstacles, gamma, delta)
-        elapsed.append(time.perf_counter() - started)
-    assert min(elapsed) < 0.05
-    assert CHECK_SPACING_FRACTION <= 1.0 / 20.0

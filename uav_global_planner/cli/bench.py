@@ -1,8 +1,11 @@
 """``uav-plan bench``: the performance figures of every shipped scene and algorithm.
 
 Each scene runs in a fresh process, so the peak resident memory reported is that scene's own
-(grid, inflation, search workspace, smoothing), as it would be in the planner node. Figures only:
-nothing here asserts a speed.
+(grid, inflation, search workspace, smoothing), as it would be in the planner node. With
+``--ros``, the ROS-side figures follow: goal-to-plan latency over DDS, node start-up and the
+node's peak memory, measured by :mod:`uav_global_planner.ros.latency_bench` in a child process
+(this module never imports rclpy, so the tool works without ROS). Figures only: nothing here
+asserts a speed.
 """
 
 import argparse
@@ -12,7 +15,7 @@ import statistics
 import subprocess
 import sys
 import time
-from typing import Any, Dict, List, Optional
+from typing import Any, Dict, List, Optional, Sequence
 
 from uav_global_planner.cli.report import finite_or_none, format_table
 from uav_global_planner.core.config import ALGORITHMS
@@ -89,8 +92,9 @@ def _measure_in_subprocess(name: str) -> Dict[str, Any]:
     return json.loads(run.stdout)
 
 
-def print_report(scenes: List[Dict[str, Any]], out=sys.stdout) -> None:
-    """Human-readable tables, one per scene."""
+def print_report(scenes: List[Dict[str, Any]], out=None) -> None:
+    """Human-readable tables, one per scene, on ``out`` (default: the current sys.stdout)."""
+    out = sys.stdout if out is None else out
     for figures in scenes:
         shape = ' x '.join(str(n) for n in figures['shape'])
         print(f"\n{figures['scene']}: {shape} = {figures['voxels'] / 1e6:.2f} M voxels, grid "
@@ -108,11 +112,85 @@ def print_report(scenes: List[Dict[str, Any]], out=sys.stdout) -> None:
              for r in figures['rows']]), file=out)
 
 
+def _ms(value: Optional[float], spec: str = '.1f') -> str:
+    return '-' if value is None else format(value, spec)
+
+
+def format_ros_report(figures: Dict[str, Any]) -> str:
+    """Tables of the ROS-side figures (the JSON of ``latency_bench --json``)."""
+    load = figures.get('load_average')
+    after = figures.get('load_average_after')
+    lines = ['ROS: goal published -> plan received over DDS (localhost, domain '
+             f"{figures['domain_id']}), {figures['goals']} goals per scene alternating between "
+             f"two goals; {figures.get('cpus') or '?'} CPUs, load average "
+             f"{_ms(load, '.2f')} before, {_ms(after, '.2f')} after"]
+    rows = []
+    for s in figures['scenes']:
+        latency = s['latency']
+        received = s.get('bytes_latency') or {}
+        rows.append([s['scene'], f"{s['startup_s']:.2f}", _ms(latency['median_ms']),
+                     _ms(latency['p90_ms']), _ms(latency['max_ms']),
+                     _ms(received.get('median_ms')),
+                     f"{_ms(s['node_search_ms'], '.2f')} + {_ms(s['node_smoothing_ms'])}",
+                     str(s['poses'] or '-'), f"{s['plans_received']}/{s['goals']}",
+                     _ms(s['peak_rss_mb'], '.0f')])
+    if rows:
+        lines.append(format_table(
+            ['scene', 'start-up [s]', 'median [ms]', 'p90 [ms]', 'max [ms]',
+             'bytes in, median [ms]', 'node search + smoothing [ms]', 'poses', 'plans',
+             'peak RSS [MB]'], rows))
+    for s in figures['scenes']:
+        parts = [f"goal {[round(v, 2) for v in g['goal']]}: median "
+                 f"{_ms(g['latency']['median_ms'])} ms (node plan {_ms(g['node_plan_ms'])} ms)"
+                 for g in s.get('by_goal', ())]
+        if parts:
+            lines.append(f"  {s['scene']} per goal: " + '; '.join(parts))
+    memory = figures.get('memory')
+    if memory:
+        lines.append('')
+        lines.append(f"{memory['scene']}: node peak RSS (VmHWM) "
+                     f"{_ms(memory['peak_rss_mb'], '.0f')} MB after planning with every "
+                     f"algorithm (VmRSS then {_ms(memory['rss_mb'], '.0f')} MB), start-up "
+                     f"{memory['startup_s']:.2f} s")
+        lines.append(format_table(
+            ['algorithm', 'status', 'latency [ms]', 'node search [ms]', 'VmHWM after [MB]'],
+            [[r['algorithm'], r['status'], _ms(r['latency_ms']), _ms(r['node_search_ms']),
+              _ms(r['peak_rss_mb'], '.0f')] for r in memory['algorithms']]))
+    return '\n'.join(lines)
+
+
+def measure_ros(options: Sequence[str] = ()) -> Dict[str, Any]:
+    """The ROS-side figures, from ``python -m uav_global_planner.ros.latency_bench --json``.
+
+    Parameters
+    ----------
+    options : sequence of str
+        Further arguments of the benchmark, for example ``['--goals', '20']``.
+
+    Raises
+    ------
+    RuntimeError
+        When the benchmark fails (ROS missing, the node not answering); with its output.
+    """
+    run = subprocess.run([sys.executable, '-m', 'uav_global_planner.ros.latency_bench',
+                          '--json', *options], capture_output=True, text=True, check=False)
+    try:
+        return json.loads(run.stdout)
+    except ValueError:
+        raise RuntimeError(f'ROS benchmark failed (exit code {run.returncode}):\n'
+                           f'{run.stderr.strip()}') from None
+
+
 def main(argv: Optional[List[str]] = None) -> int:
     """Entry point of ``uav-plan bench`` (and of the per-scene worker processes)."""
     parser = argparse.ArgumentParser(prog='uav-plan bench', description=__doc__.splitlines()[0])
     parser.add_argument('scenes', nargs='*', help='scene names or files (default: all shipped)')
     parser.add_argument('--json', action='store_true', help='print one JSON document')
+    parser.add_argument('--ros', action='store_true',
+                        help='also measure planner_node over ROS 2: goal-to-plan latency on '
+                             'the paper scenes, start-up time, peak memory on dense60_fine')
+    parser.add_argument('--ros-goals', type=int, default=50, metavar='N',
+                        help='goals per scene of the ROS latency figures (default 50)')
     parser.add_argument('--one-scene', help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.one_scene:
@@ -120,10 +198,23 @@ def main(argv: Optional[List[str]] = None) -> int:
         return 0
     names = args.scenes or [path.stem for path in shipped_scenes()]
     figures = [_measure_in_subprocess(name) for name in names]
-    if args.json:
-        print(json.dumps({'scenes': figures}))
-    else:
+    if not args.json:
         print_report(figures)
+    ros = None
+    if args.ros:
+        try:
+            ros = measure_ros(['--goals', str(args.ros_goals)])
+        except RuntimeError as error:
+            print(f'uav-plan bench: {error}', file=sys.stderr)
+            return 1
+        if not args.json:
+            print()
+            print(format_ros_report(ros))
+    if args.json:
+        document: Dict[str, Any] = {'scenes': figures}
+        if ros is not None:
+            document['ros'] = ros
+        print(json.dumps(document))
     return 0
 
 

@@ -24,6 +24,34 @@ EXIT_PLAN_FAILED = 1
 EXIT_INVALID_INPUT = 2
 
 
+class _UsageError(Exception):
+    """A command line argparse refuses (unknown option, bad value, invalid choice).
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The (sub-)command parser that refused it, for its usage line.
+    message : str
+        argparse's reason, naming the option.
+    """
+
+    def __init__(self, parser: argparse.ArgumentParser, message: str) -> None:
+        super().__init__(f'{parser.prog}: {message}')
+        self.parser = parser
+        self.reason = message
+
+
+class _Parser(argparse.ArgumentParser):
+    """An argument parser that raises instead of exiting, so ``plan --json`` can answer in JSON.
+
+    Sub-command parsers are made of the same class.
+    """
+
+    def error(self, message: str) -> None:
+        """Raise :class:`_UsageError` (argparse's hook; the default prints and exits 2)."""
+        raise _UsageError(self, message)
+
+
 def _add_scene_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('scene', help='scene YAML file, or the name of a shipped scene '
                         '(paper_medium, paper_high, dense60_mid, dense60_fine)')
@@ -38,7 +66,7 @@ def _add_scene_options(parser: argparse.ArgumentParser) -> None:
 
 
 def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog='uav-plan', description=__doc__.splitlines()[0])
+    parser = _Parser(prog='uav-plan', description=__doc__.splitlines()[0])
     commands = parser.add_subparsers(dest='command', required=True)
 
     plan = commands.add_parser('plan', help='plan once and print the result')
@@ -151,20 +179,33 @@ def main(argv: Optional[List[str]] = None) -> int:
     if argv[:1] == ['bench']:
         from uav_global_planner.cli.bench import main as bench_main
         return bench_main(argv[1:])
-    args = _parser().parse_args(argv)
+    parser = _parser()
+    try:
+        args = parser.parse_args(argv)
+    except _UsageError as error:
+        # plan --json promises one JSON object on stdout, even for a mistyped option.
+        if argv[:1] == ['plan'] and '--json' in argv:
+            _print_invalid_json(str(error), None)
+        else:
+            error.parser.print_usage(sys.stderr)
+            print(f'{error.parser.prog}: error: {error.reason}', file=sys.stderr)
+        return EXIT_INVALID_INPUT
     try:
         scene = _scene_from_args(args)
         runner = {'plan': _run_plan, 'compare': _run_compare, 'plot': _run_plot}[args.command]
         return runner(args, scene)
     except InvalidInputError as error:
         if getattr(args, 'json', False) and args.command == 'plan':
-            print(json.dumps({'status': PlanStatus.INVALID_INPUT.value, 'message': str(error),
-                              'algorithm': args.algorithm, 'start': None, 'goal': None,
-                              'path': [], 'path_length_m': None, 'expanded_nodes': 0,
-                              'planning_time_s': None}))
+            _print_invalid_json(str(error), args.algorithm)
         else:
             print(f'uav-plan: error: {error}', file=sys.stderr)
         return EXIT_INVALID_INPUT
+
+
+def _print_invalid_json(message: str, algorithm: Optional[str]) -> None:
+    print(json.dumps({'status': PlanStatus.INVALID_INPUT.value, 'message': message,
+                      'algorithm': algorithm, 'start': None, 'goal': None, 'path': [],
+                      'path_length_m': None, 'expanded_nodes': 0, 'planning_time_s': None}))
 
 
 if __name__ == '__main__':

@@ -114,6 +114,8 @@ def validate_config(config: PlannerConfig) -> PlannerConfig:
     InvalidInputError
         Naming the first offending field and the accepted range.
     """
+    if not isinstance(config, PlannerConfig):
+        raise InvalidInputError(f'config must be a PlannerConfig, got {type(config).__name__}')
     values = {
         'bounds_min': _triple('bounds.min', config.bounds_min),
         'bounds_max': _triple('bounds.max', config.bounds_max),

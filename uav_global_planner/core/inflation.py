@@ -6,13 +6,19 @@ vectorised passes over small sub-blocks, never a Python loop over voxels.
 """
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from uav_global_planner.core.errors import InvalidInputError
 from uav_global_planner.core.grid import VoxelGrid
 from uav_global_planner.core.obstacles import box_distance, ObstacleSet, sphere_distance
 
-# Number of points handled at once when inflating point sets (bounds temporary memory).
-_POINT_CHUNK = 4096
+# Largest number of (point, nearby node) pairs, or of nodes, handled at once when inflating
+# point sets: bounds the temporary memory (about 100 bytes each) whatever gamma / delta and the
+# number of points.
+_PAIR_BUDGET = 1 << 18
+# Above this many (point, nearby node) pairs per grid node, point sets are inflated by a
+# nearest-point query of every node instead.
+_PAIRS_PER_NODE = 8
 
 
 def _node_block(grid: VoxelGrid, lo: np.ndarray, hi: np.ndarray):
@@ -20,8 +26,14 @@ def _node_block(grid: VoxelGrid, lo: np.ndarray, hi: np.ndarray):
 
     Returns ``None`` when the box misses the grid.
     """
-    first = np.floor((lo - grid.bounds_min) / grid.resolution).astype(np.int64) - 1
-    last = np.ceil((hi - grid.bounds_min) / grid.resolution).astype(np.int64) + 1
+    # Clip to [-2, N + 1] cells in floating point before the cast (the same block results):
+    # far-reaching obstacles (a ground slab of +-1e30 m) would overflow int64 and wrap to a
+    # block that misses the grid.
+    top = np.asarray(grid.shape, dtype=np.float64) + 1.0
+    first = np.floor(np.clip((lo - grid.bounds_min) / grid.resolution, -2.0, top)).astype(
+        np.int64) - 1
+    last = np.ceil(np.clip((hi - grid.bounds_min) / grid.resolution, -2.0, top)).astype(
+        np.int64) + 1
     first = np.maximum(first, 0)
     last = np.minimum(last, np.asarray(grid.shape) - 1)
     if np.any(first > last):
@@ -69,17 +81,27 @@ def blocked_mask(grid: VoxelGrid, obstacles: ObstacleSet, safety_margin: float) 
 
 def _mark_near_points(grid: VoxelGrid, points: np.ndarray, gamma: float,
                       blocked: np.ndarray) -> None:
-    """Block every node within gamma of any occupied point, exactly, in place."""
+    """Block every node within gamma of any occupied point, exactly, in place.
+
+    Each point visits the cube of nodes within gamma / delta cells of it. That cube grows as
+    (gamma / delta)^3 whatever the grid's size (gamma = 100 m at delta = 0.25 m: 5e8 nodes, a
+    MemoryError), so when the points' cubes hold more nodes than the grid, every node asks a
+    KD-tree of the points for its nearest one instead.
+    """
     reach = int(np.ceil(gamma / grid.resolution)) + 1
-    steps = np.arange(-reach, reach + 1)
-    offsets = np.stack(np.meshgrid(steps, steps, steps, indexing='ij'), axis=-1).reshape(-1, 3)
-    shape = np.asarray(grid.shape)
     inside = grid.contains(points) | np.all(
         (points > grid.bounds_min - gamma - grid.resolution)
         & (points < grid.bounds_max + gamma + grid.resolution), axis=-1)
     relevant = points[inside]
-    for start in range(0, len(relevant), _POINT_CHUNK):
-        chunk = relevant[start:start + _POINT_CHUNK]
+    if len(relevant) * (2 * reach + 1) ** 3 > _PAIRS_PER_NODE * grid.size:
+        _mark_by_nearest_point(grid, relevant, gamma, blocked)
+        return
+    steps = np.arange(-reach, reach + 1)
+    offsets = np.stack(np.meshgrid(steps, steps, steps, indexing='ij'), axis=-1).reshape(-1, 3)
+    shape = np.asarray(grid.shape)
+    step = max(1, _PAIR_BUDGET // len(offsets))
+    for start in range(0, len(relevant), step):
+        chunk = relevant[start:start + step]
         base = np.rint((chunk - grid.bounds_min) / grid.resolution).astype(np.int64)
         candidates = base[:, None, :] + offsets[None, :, :]
         valid = np.all((candidates >= 0) & (candidates < shape), axis=-1)
@@ -87,3 +109,17 @@ def _mark_near_points(grid: VoxelGrid, points: np.ndarray, gamma: float,
         gap = np.sqrt(np.sum((node_positions - chunk[:, None, :]) ** 2, axis=-1))
         hit = candidates[valid & (gap <= gamma)]
         blocked[hit[:, 0], hit[:, 1], hit[:, 2]] = True
+
+
+def _mark_by_nearest_point(grid: VoxelGrid, points: np.ndarray, gamma: float,
+                           blocked: np.ndarray) -> None:
+    """Block every node whose nearest point is within gamma, in chunks of nodes, in place."""
+    tree = cKDTree(points)
+    flat = blocked.reshape(-1)
+    # The query prunes beyond the bound (strictly); the test below applies the rule exactly.
+    upper = gamma + 1e-9 * (1.0 + gamma)
+    for first in range(0, grid.size, _PAIR_BUDGET):
+        number = np.arange(first, min(first + _PAIR_BUDGET, grid.size))
+        nearest, _ = tree.query(grid.index_to_world(grid.unravel(number)),
+                                distance_upper_bound=upper)
+        flat[number] |= nearest <= gamma

@@ -60,11 +60,20 @@ class Planner:
         Settings; validated here.
     obstacles : ObstacleSet
         Obstacles in the planning frame [m].
+
+    Raises
+    ------
+    InvalidInputError
+        For invalid settings or obstacles that are not an :class:`ObstacleSet`.
     """
 
     def __init__(self, config: PlannerConfig = PlannerConfig(),
                  obstacles: Optional[ObstacleSet] = None) -> None:
         self._config = validate_config(config)
+        if obstacles is not None and not isinstance(obstacles, ObstacleSet):
+            # Checked here, not at the first plan: there it would escape plan() as an
+            # AttributeError.
+            raise InvalidInputError('obstacles must be an ObstacleSet')
         self._obstacles = obstacles if obstacles is not None else ObstacleSet()
         self._inflated: Optional[_InflatedGrid] = None
         self._fallback: Optional[_InflatedGrid] = None
@@ -191,7 +200,16 @@ class Planner:
             # The grid path hugs the inflated obstacles so closely that no curve through it keeps
             # gamma: plan once more on the conservative grid, whose polyline provably does.
             fallback = self._conservative()
-            start_node, goal_node = self._check_endpoints(fallback, start_point, goal_point)
+            try:
+                start_node, goal_node = self._check_endpoints(fallback, start_point, goal_point)
+            except (StartOccupiedError, GoalOccupiedError) as error:
+                # The endpoint keeps gamma (checked on the primary grid): only the wider margin
+                # of the fallback grid blocks it, so the request is not "occupied".
+                which = 'start' if isinstance(error, StartOccupiedError) else 'goal'
+                raise NoValidPathError(
+                    f'{first_error}; and the grid inflated for edge clearance (gamma + '
+                    f'delta*sqrt(3)/2 = {fallback.margin:.4f} m) blocks the {which} node',
+                    expanded_nodes=found.expanded_nodes) from None
             try:
                 found = self._search(fallback, start_node, goal_node, name)
             except NoValidPathError:
@@ -255,17 +273,19 @@ class Planner:
         goal_node = grid.world_to_index(goal)
         # The smoothed curve must keep gamma with a little room for rounding (the clearance
         # check of smoothing needs it), so endpoints that close to the margin count as occupied.
-        clearances = self._obstacles.distance(np.stack([start, goal])) - (
-            _ENDPOINT_TOLERANCE * self._config.resolution)
+        # (The messages give the true clearance: with the room taken off, an endpoint inside an
+        # obstacle would read "its clearance is -0.000 m".)
+        true_clearances = self._obstacles.distance(np.stack([start, goal]))
+        clearances = true_clearances - _ENDPOINT_TOLERANCE * self._config.resolution
         if inflated.blocked[tuple(start_node)] or clearances[0] <= gamma:
             raise StartOccupiedError(
                 f'start {start.tolist()} is within the safety margin: its clearance is '
-                f'{min(clearances[0], self._node_clearance(grid, start_node)):.3f} m, '
+                f'{min(true_clearances[0], self._node_clearance(grid, start_node)):.3f} m, '
                 f'gamma is {gamma} m')
         if inflated.blocked[tuple(goal_node)] or clearances[1] <= gamma:
             raise GoalOccupiedError(
                 f'goal {goal.tolist()} is within the safety margin: its clearance is '
-                f'{min(clearances[1], self._node_clearance(grid, goal_node)):.3f} m, '
+                f'{min(true_clearances[1], self._node_clearance(grid, goal_node)):.3f} m, '
                 f'gamma is {gamma} m')
         return start_node, goal_node
 
@@ -322,7 +342,14 @@ def _point_or_nan(value) -> np.ndarray:
 
 
 def _with_exact_endpoints(path: np.ndarray, start: np.ndarray, goal: np.ndarray) -> np.ndarray:
-    """The node path with the exact start and goal added where they are off the nodes."""
+    """The node path with the exact start and goal added where they are off the nodes.
+
+    A goal equal to the start (within the snap tolerance) is a single-point plan at the start:
+    adding both to an off-node path would make a there-and-back curve through the node with a
+    zero-length closing segment, which no spline can be fitted to.
+    """
+    if np.linalg.norm(goal - start) <= _SNAP_TOLERANCE:
+        return start[None, :].copy()
     parts = []
     if np.linalg.norm(path[0] - start) > _SNAP_TOLERANCE:
         parts.append(start[None, :])

@@ -162,7 +162,9 @@ def parse_scene(data: Any, name: str = 'scene',
     description = top.get('description', '')
     if not isinstance(description, str):
         raise _fail('description', 'must be a string')
-    entries = top.get('obstacles') or []
+    entries = top.get('obstacles')
+    if entries is None:  # the key left out, or left empty: no obstacles
+        entries = []
     if not isinstance(entries, list):
         raise _fail('obstacles', f'must be a list, got {type(entries).__name__}')
     obstacles: List[Obstacle] = [_obstacle(e, f'obstacles[{n}]') for n, e in enumerate(entries)]
@@ -182,13 +184,17 @@ def load_scene(path: Union[str, Path], base: PlannerConfig = PlannerConfig()) ->
     Raises
     ------
     InvalidInputError
-        For an unreadable file, text that is not YAML, or any invalid key (named by its path).
+        For an unreadable file, a file that is not UTF-8 text, text that is not YAML, or any
+        invalid key (named by its path).
     """
     file = Path(path)
     try:
         text = file.read_text(encoding='utf-8')
     except OSError as error:
         raise InvalidInputError(f'{file}: cannot read scene file ({error.strerror})') from None
+    except UnicodeDecodeError as error:
+        raise InvalidInputError(f'{file}: not a text file, so not a scene file ({error.reason} '
+                                f'at byte {error.start})') from None
     try:
         data = yaml.safe_load(text)
     except yaml.YAMLError as error:

@@ -801,14 +801,17 @@ def _bounds_violations(pieces: _Pieces, lo: np.ndarray, hi: np.ndarray) -> np.nd
     """Pieces leaving the box [lo, hi], found exactly from the extrema of each cubic."""
     c0, c1, c2, c3 = pieces.coef
     h = pieces.h[:, None]
-    # Stationary points of c0 t^3 + c1 t^2 + c2 t + c3 solve 3 c0 t^2 + 2 c1 t + c2 = 0.
+    # Stationary points of c0 t^3 + c1 t^2 + c2 t + c3 solve 3 c0 t^2 + 2 c1 t + c2 = 0. The
+    # stable form q = -(b + sign(b) sqrt(disc)) / 2, roots c / q and q / a: the textbook formula
+    # loses the root near -c / b to cancellation when c0 is rounding noise (a parabola, as
+    # not-a-knot splines through three knots are), and the curve's extremum goes unseen.
     a, b, c = 3.0 * c0, 2.0 * c1, c2
     disc = b * b - 4.0 * a * c
     root = np.sqrt(np.maximum(disc, 0.0))
-    with np.errstate(divide='ignore', invalid='ignore'):
-        cubic = np.abs(a) > 1e-300
-        r1 = np.where(cubic, (-b + root) / (2.0 * a), np.where(np.abs(b) > 0, -c / b, 0.0))
-        r2 = np.where(cubic, (-b - root) / (2.0 * a), 0.0)
+    q = -0.5 * (b + np.where(b < 0.0, -root, root))
+    with np.errstate(divide='ignore', invalid='ignore', over='ignore'):
+        r1 = np.where(q != 0.0, c / q, 0.0)
+        r2 = np.where(a != 0.0, q / a, 0.0)
     r1 = np.clip(np.nan_to_num(r1), 0.0, h)
     r2 = np.clip(np.nan_to_num(r2), 0.0, h)
     lows = np.full(c0.shape, np.inf)

@@ -331,6 +331,31 @@ def apply_marker_array(current: Mapping[MarkerKey, Obstacle], msg: MarkerArray,
     return updated
 
 
+def same_obstacle(first: Obstacle, second: Obstacle) -> bool:
+    """True when two obstacles have the same shape and the same numbers."""
+    if first is second:
+        return True
+    if type(first) is not type(second):
+        return False
+    if isinstance(first, Sphere):
+        return (first.radius == second.radius
+                and bool(np.array_equal(first.center, second.center)))
+    if isinstance(first, Box):
+        return (bool(np.array_equal(first.min, second.min))
+                and bool(np.array_equal(first.max, second.max)))
+    return bool(np.array_equal(first.points, second.points))
+
+
+def same_marker_obstacles(first: Mapping[MarkerKey, Obstacle],
+                          second: Mapping[MarkerKey, Obstacle]) -> bool:
+    """True when two (ns, id)-keyed obstacle maps hold the same keys and the same shapes.
+
+    An empty ``MarkerArray``, a DELETE of an unknown marker or a republished map change nothing.
+    """
+    return (first.keys() == second.keys()
+            and all(same_obstacle(first[key], second[key]) for key in first))
+
+
 # --------------------------------------------------------------------------------------------
 # Obstacles from point clouds
 # --------------------------------------------------------------------------------------------
@@ -517,6 +542,15 @@ def plan_to_trajectory(result: PlanResult, frame_id: str, stamp_ns: int,
         point.time_from_start = duration_from_seconds(trajectory.times[index])
         points.append(point)
     msg.points = points
+    return msg
+
+
+def empty_trajectory(frame_id: str, stamp_ns: int,
+                     joint_name: str = 'base_link') -> MultiDOFJointTrajectory:
+    """A trajectory without points: withdraws a latched one."""
+    msg = MultiDOFJointTrajectory()
+    msg.header = Header(frame_id=frame_id, stamp=time_from_ns(stamp_ns))
+    msg.joint_names = [joint_name]
     return msg
 
 

@@ -20,7 +20,13 @@ name                      type                            notes
 Planning runs on a worker thread (the search kernels release the GIL), so parameter services and
 message intake stay responsive during a long plan. The worker takes a snapshot of the settings,
 obstacles, start and goal when a plan begins; whatever arrives meanwhile is coalesced into at most
-one follow-up plan.
+one follow-up plan. The diagnostics of a plan name the obstacle set it was computed on
+(``obstacles_version``, and ``obstacles_stamp``: the header stamp of the obstacle message that last
+changed the obstacles) and the newest set it was checked against before publishing
+(``obstacles_checked_*``): a plan that collides with obstacles received while it was computed is
+not published (``event: plan_discarded``) but made again on them. When new obstacles make the
+latched plan collide and no new plan can replace it, empty ``plan``, ``unsmoothed_plan`` and
+``trajectory`` messages withdraw it (``plan_withdrawn: true``).
 """
 
 from dataclasses import dataclass
@@ -52,10 +58,11 @@ from uav_global_planner.core.config import (ALGORITHMS, PlannerConfig, SMOOTHING
 from uav_global_planner.core.errors import InvalidInputError
 from uav_global_planner.core.grid import as_point
 from uav_global_planner.core.obstacles import ObstacleSet
-from uav_global_planner.core.planner import Planner
+from uav_global_planner.core.planner import densify, Planner
 from uav_global_planner.core.result import PlanResult
 from uav_global_planner.core.status import (NAV2_CODE_BY_STATUS, NAV2_GOAL_OUTSIDE_MAP,
                                             NAV2_UNKNOWN, PlanStatus)
+from uav_global_planner.ros import cdr
 from uav_global_planner.ros import conversions as conv
 
 #: Name of the node unless remapped with ``--ros-args -r __node:=...``.
@@ -349,6 +356,8 @@ class Snapshot:
     settings_changed: bool
     obstacles: ObstacleSet
     obstacles_changed: bool
+    obstacles_version: int
+    obstacles_stamp_ns: int
     goal: Optional[Goal]
     goal_changed: bool
     start: np.ndarray
@@ -393,6 +402,9 @@ class PlannerNode:
         self._cloud: Optional[np.ndarray] = None
         self._obstacles = ObstacleSet()
         self._obstacles_serial = 0
+        # Header stamp of the obstacle message that last changed the obstacles (0: none yet);
+        # reported with every plan, so a reader can tell which map a plan was computed on.
+        self._obstacles_stamp_ns = 0
         self._obstacles_changed = False
         self._goal: Optional[Goal] = None
         self._goal_serial = 0
@@ -403,6 +415,10 @@ class PlannerNode:
         # Worker-only state: outcome of the last plan attempt.
         self._last_result: Optional[PlanResult] = None
         self._last_goal_serial = -1
+        # Worker-only: positions of the plan latched on ``plan`` (None: none, or withdrawn).
+        self._latched_path: Optional[np.ndarray] = None
+        # Worker-only: why the active goal must be planned again although nothing flagged it.
+        self._replan_reason: Optional[str] = None
         self._markers_published_key: Optional[tuple] = None
 
         node = self.node
@@ -489,6 +505,7 @@ class PlannerNode:
                 self._markers, self._cloud = {}, None
                 self._obstacles = ObstacleSet()
                 self._obstacles_serial += 1
+                self._obstacles_stamp_ns = 0
                 self._obstacles_changed = True
                 self._goal, self._start, self._start_source = None, None, 'parameter'
                 self._log.warning(f'frame_id changed to {settings.frame_id!r}: obstacles, '
@@ -542,10 +559,16 @@ class PlannerNode:
         except InvalidInputError as error:
             self._refuse(topic, error)
             return
+        if conv.same_marker_obstacles(markers, updated):
+            # An empty array, a DELETE of an unknown marker or the same map republished: keep
+            # the inflated grid instead of rebuilding it for nothing.
+            return
         with self._wake:
             # Only this (executor) thread writes markers and cloud, so nothing changed since.
             self._markers, self._obstacles = updated, obstacles
             self._obstacles_serial += 1
+            self._obstacles_stamp_ns = max(
+                (conv.time_to_ns(marker.header.stamp) for marker in msg.markers), default=0)
             self._obstacles_changed = True
             self._wake.notify_all()
 
@@ -565,6 +588,7 @@ class PlannerNode:
         with self._wake:
             self._cloud, self._obstacles = points, obstacles
             self._obstacles_serial += 1
+            self._obstacles_stamp_ns = conv.time_to_ns(msg.header.stamp)
             self._obstacles_changed = True
             self._wake.notify_all()
 
@@ -622,6 +646,8 @@ class PlannerNode:
             snapshot = Snapshot(
                 settings=settings, settings_changed=self._settings_changed,
                 obstacles=self._obstacles, obstacles_changed=self._obstacles_changed,
+                obstacles_version=self._obstacles_serial,
+                obstacles_stamp_ns=self._obstacles_stamp_ns,
                 goal=self._goal, goal_changed=self._goal_changed, start=start,
                 start_source=source)
             self._settings_changed = self._obstacles_changed = self._goal_changed = False
@@ -665,6 +691,8 @@ class PlannerNode:
         # A goal not attempted yet (normally goal_changed; also after a failed step).
         if goal.serial != self._last_goal_serial:
             reason = 'new goal'
+        elif self._replan_reason is not None:
+            reason = self._replan_reason
         elif snap.settings_changed:
             reason = 'parameters changed'
         elif snap.obstacles_changed and snap.settings.replan_on_obstacle_change:
@@ -682,28 +710,54 @@ class PlannerNode:
             return None
         if not last.ok:
             return 'obstacles changed' if last.status in _RETRY_ON_OBSTACLES else None
-        path = last.smoothed_path
+        if self._clear_ahead(last.smoothed_path, snap):
+            return None
+        return 'obstacles changed and the current path is no longer clear'
+
+    def _clear_ahead(self, path: np.ndarray, snap: Snapshot,
+                     obstacles: Optional[ObstacleSet] = None) -> bool:
+        """True when the part of ``path`` still ahead of the vehicle keeps gamma from
+        ``obstacles`` (default: the planner's)."""
         if snap.start_source != 'parameter' and len(path) > 1:
             # Only the part still ahead of the vehicle matters.
             nearest = int(np.argmin(np.linalg.norm(path - snap.start, axis=1)))
             path = path[nearest:]
-        if self._planner.path_is_clear(path):
-            return None
-        return 'obstacles changed and the current path is no longer clear'
+        if obstacles is None:
+            return self._planner.path_is_clear(path)
+        if len(path) == 0 or obstacles.is_empty():
+            return True
+        config = snap.settings.config
+        dense = densify(np.asarray(path, dtype=np.float64), config.resolution / 20.0)
+        return bool(np.min(obstacles.distance(dense)) >= config.safety_margin)
 
     def _plan(self, snap: Snapshot, goal: Goal, reason: str) -> None:
         settings = snap.settings
+        self._replan_reason = None
         result = self._planner.plan(snap.start, goal.position)
+        checked = (snap.obstacles_version, snap.obstacles_stamp_ns)
+        if result.ok:
+            with self._wake:
+                newest = (self._obstacles, self._obstacles_serial, self._obstacles_stamp_ns)
+            if newest[1] != checked[0]:
+                # Obstacles arrived while planning: publish only a plan that keeps gamma from
+                # them too; otherwise plan again on them at once.
+                if not self._clear_ahead(result.smoothed_path, snap, newest[0]):
+                    self._discard(snap, goal, newest[1], newest[2])
+                    return
+                checked = newest[1:]
         stamp_ns = self.node.get_clock().now().nanoseconds
         self._last_result, self._last_goal_serial = result, goal.serial
         frame = settings.frame_id
         if result.ok:
             orientation = tuple(float(v) for v in goal.orientation)
-            self._plan_pub.publish(conv.plan_to_path(result, frame, stamp_ns, orientation))
+            # Serialised from the arrays: the messages of conv.plan_to_path and friends, without
+            # building hundreds of message objects (milliseconds per plan).
+            self._plan_pub.publish(cdr.serialized_plan_path(result, frame, stamp_ns, orientation))
             self._unsmoothed_pub.publish(
-                conv.plan_to_unsmoothed_path(result, frame, stamp_ns, orientation))
+                cdr.serialized_unsmoothed_path(result, frame, stamp_ns, orientation))
             self._trajectory_pub.publish(
-                conv.plan_to_trajectory(result, frame, stamp_ns, orientation))
+                cdr.serialized_trajectory(result, frame, stamp_ns, orientation))
+            self._latched_path = result.smoothed_path
             level = DiagnosticStatus.OK
             self._log.info(
                 f'plan ({reason}): {result.smoothed_length_m:.2f} m smoothed, '
@@ -713,11 +767,52 @@ class PlannerNode:
             level = DiagnosticStatus.ERROR
             self._log.warning(f'no plan ({reason}): {result.status.value} '
                               f'(code {NAV2_CODE_BY_STATUS[result.status]}): {result.message}')
+        withdrawn = False
+        if (not result.ok and self._latched_path is not None
+                and not self._clear_ahead(self._latched_path, snap)):
+            # The latched plan now collides and nothing replaces it: a controller, even one
+            # that subscribes later, must not fly it. Empty messages withdraw it.
+            self._withdraw_plan(frame, stamp_ns)
+            withdrawn = True
         values = conv.plan_diagnostic_values(result, snap.start_source, {
-            'reason': reason, 'obstacles': len(snap.obstacles), 'frame_id': frame,
+            'reason': reason, 'plan_withdrawn': withdrawn, 'obstacles': len(snap.obstacles),
+            'obstacles_version': snap.obstacles_version,
+            'obstacles_stamp': snap.obstacles_stamp_ns, 'obstacles_checked_version': checked[0],
+            'obstacles_checked_stamp': checked[1], 'frame_id': frame,
             'message': result.message})
         self._publish_diagnostics(stamp_ns, level, f'{result.status.value}: {result.message}',
                                   values)
+
+    def _discard(self, snap: Snapshot, goal: Goal, version: int, stamp_ns: int) -> None:
+        """Drop a plan that collides with obstacles received while it was computed.
+
+        Nothing is published but a WARN status (``event: plan_discarded``); the goal is planned
+        again on the new obstacles right away (their arrival has woken the worker already).
+        """
+        self._last_result, self._last_goal_serial = None, goal.serial
+        self._replan_reason = 'obstacles changed while planning and collided with the plan'
+        text = (f'plan discarded: obstacles (version {version}) arrived while planning '
+                f'(on version {snap.obstacles_version}) and the new plan does not keep gamma '
+                'from them; planning again')
+        self._log.info(text)
+        values = {'event': 'plan_discarded', 'status': 'discarded', 'reason': text,
+                  'obstacles_version': snap.obstacles_version,
+                  'obstacles_stamp': snap.obstacles_stamp_ns,
+                  'obstacles_checked_version': version, 'obstacles_checked_stamp': stamp_ns,
+                  'goal': goal.position}
+        values.update(self._settings_values(snap.settings))
+        self._publish_diagnostics(self.node.get_clock().now().nanoseconds,
+                                  DiagnosticStatus.WARN, text, values)
+
+    def _withdraw_plan(self, frame: str, stamp_ns: int) -> None:
+        """Replace the latched plan, unsmoothed plan and trajectory by empty ones."""
+        empty = np.empty((0, 3))
+        self._plan_pub.publish(conv.points_to_path(empty, frame, stamp_ns))
+        self._unsmoothed_pub.publish(conv.points_to_path(empty, frame, stamp_ns))
+        self._trajectory_pub.publish(conv.empty_trajectory(frame, stamp_ns))
+        self._latched_path = None
+        self._log.warning('withdrew the last plan (published empty ones): it is no longer '
+                          'clear of the obstacles by gamma and no new plan replaces it')
 
     # ---------------------------------------------------------------------------- outputs
 

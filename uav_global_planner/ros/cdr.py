@@ -1,0 +1,235 @@
+"""The planner's large output messages, serialised straight from numpy arrays.
+
+Building a ``nav_msgs/Path`` of a few hundred poses out of rclpy message objects costs several
+milliseconds (six Python objects and a dozen checked setters per pose), and publishing it costs
+another millisecond to convert the objects to C structures. The functions here write the same
+messages directly in their wire format, little-endian CDR (XCDR1, the encoding rmw implementations
+use on the wire), with one numpy record per pose, in a small fraction of that time;
+``Publisher.publish`` sends such bytes as they are.
+
+Every function produces exactly the message of its counterpart in
+:mod:`~uav_global_planner.ros.conversions` (same poses, stamps and orientations; the tests compare
+both after deserialisation), so subscribers cannot tell the difference. No ``rclpy`` here.
+"""
+
+import math
+from typing import List, Optional, Sequence, Tuple
+
+import numpy as np
+
+from uav_global_planner.core.result import PlanResult
+from uav_global_planner.ros.conversions import path_yaws, quaternion_yaw
+
+# Encapsulation header of little-endian plain CDR.
+_ENCAPSULATION = b'\x00\x01\x00\x00'
+
+# Field kinds of a record: numpy format and CDR alignment.
+_KINDS = {'u4': ('<u4', 4), 'i4': ('<i4', 4), 'f8': ('<f8', 8)}
+
+#: A record field: (name, kind), kind one of 'u4', 'i4', 'f8', or (name, bytes) for raw bytes
+#: without alignment (the characters of a string after its length).
+Field = Tuple[str, object]
+
+
+class _Writer:
+    """Accumulates a CDR stream; offsets (and so alignment) count from after the header."""
+
+    def __init__(self) -> None:
+        self._parts: List[bytes] = [_ENCAPSULATION]
+        self.offset = 0
+
+    def _append(self, data: bytes) -> None:
+        self._parts.append(data)
+        self.offset += len(data)
+
+    def _align(self, alignment: int) -> None:
+        padding = -self.offset % alignment
+        if padding:
+            self._append(bytes(padding))
+
+    def u32(self, value: int) -> None:
+        self._align(4)
+        self._append(int(value).to_bytes(4, 'little'))
+
+    def time(self, stamp_ns: int) -> None:
+        """``builtin_interfaces/Time`` (or ``Duration``) of integer nanoseconds."""
+        sec, nanosec = divmod(int(stamp_ns), 1_000_000_000)
+        self._align(4)
+        self._append(sec.to_bytes(4, 'little', signed=True) + nanosec.to_bytes(4, 'little'))
+
+    def string(self, text: str) -> None:
+        data = text.encode('utf-8') + b'\x00'
+        self.u32(len(data))
+        self._append(data)
+
+    def records(self, fields: Sequence[Field], columns: dict, count: int) -> None:
+        """``count`` records of ``fields``; ``columns`` maps each numeric field to its values.
+
+        The padding inside a record depends on where it starts; records are written in runs
+        that start at the same alignment, each run as one numpy structured array.
+        """
+        done = 0
+        while done < count:
+            dtype = _record_dtype(fields, self.offset)
+            # A record whose size keeps the alignment is followed by records laid out alike.
+            run = count - done if dtype.itemsize % 8 == 0 else 1
+            array = np.zeros(run, dtype=dtype)
+            for name, kind in fields:
+                if isinstance(kind, bytes):
+                    array[name] = np.frombuffer(kind, dtype=f'V{len(kind)}')[0]
+                else:
+                    array[name] = columns[name][done:done + run]
+            self._append(array.tobytes())
+            done += run
+
+    def bytes(self) -> bytes:
+        return b''.join(self._parts)
+
+
+def _record_dtype(fields: Sequence[Field], start: int) -> np.dtype:
+    """Structured dtype of one record starting at stream offset ``start``, CDR padding
+    included."""
+    names, formats, offsets = [], [], []
+    offset = start
+    for name, kind in fields:
+        if isinstance(kind, bytes):
+            fmt, alignment = f'V{len(kind)}', 1
+        else:
+            fmt, alignment = _KINDS[kind]
+        offset += -offset % alignment
+        names.append(name)
+        formats.append(fmt)
+        offsets.append(offset - start)
+        offset += np.dtype(fmt).itemsize
+    return np.dtype({'names': names, 'formats': formats, 'offsets': offsets,
+                     'itemsize': offset - start})
+
+
+def _string_fields(prefix: str, text: str) -> List[Field]:
+    """Record fields of a constant string: its length (with the NUL) and its bytes."""
+    data = text.encode('utf-8') + b'\x00'
+    return [(f'{prefix}_len', 'u4'), (f'{prefix}_chars', data)]
+
+
+def _split_ns(stamps_ns: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+    """(sec, nanosec) of integer nanoseconds, as ``time_from_ns`` splits them.
+
+    Raises
+    ------
+    OverflowError
+        When a second count does not fit the int32 of ``builtin_interfaces/Time`` (numpy would
+        wrap it silently).
+    """
+    sec, nanosec = np.divmod(stamps_ns.astype(np.int64), 1_000_000_000)
+    if len(sec) and (sec.min() < -2 ** 31 or sec.max() >= 2 ** 31):
+        raise OverflowError(f'time stamps of {int(sec.max())} s do not fit in int32 seconds')
+    return sec, nanosec
+
+
+def _yaw_quaternions(positions: np.ndarray,
+                     goal_orientation: Optional[Sequence[float]]) -> np.ndarray:
+    """(M, 4) orientations (x, y, z, w) as :func:`conversions.points_to_path` sets them."""
+    fallback = quaternion_yaw(goal_orientation) if goal_orientation is not None else 0.0
+    yaws = path_yaws(positions, fallback)
+    quaternions = np.zeros((len(positions), 4))
+    # math, not numpy: the very same rounding as conversions.yaw_quaternion.
+    halves = [0.5 * float(yaw) for yaw in yaws.tolist()]
+    quaternions[:, 2] = [math.sin(half) for half in halves]
+    quaternions[:, 3] = [math.cos(half) for half in halves]
+    if goal_orientation is not None and len(positions):
+        quaternions[-1] = [float(v) for v in goal_orientation]
+    return quaternions
+
+
+_POSE_FIELDS = ('x', 'y', 'z', 'qx', 'qy', 'qz', 'qw')
+
+
+def serialized_path(points: np.ndarray, frame_id: str, stamp_ns: int,
+                    times: Optional[np.ndarray] = None,
+                    goal_orientation: Optional[Sequence[float]] = None) -> bytes:
+    """CDR bytes of :func:`conversions.points_to_path` with the same arguments."""
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    count = len(pts)
+    if times is None:
+        stamps = np.full(count, int(stamp_ns), dtype=np.int64)
+    else:
+        offsets = np.array([int(round(float(t) * 1e9)) for t in np.asarray(times).tolist()],
+                           dtype=np.int64)
+        stamps = int(stamp_ns) + offsets
+    sec, nanosec = _split_ns(stamps)
+    quaternions = _yaw_quaternions(pts, goal_orientation)
+    columns = {'sec': sec, 'nanosec': nanosec,
+               'frame_len': np.full(count, len(frame_id.encode('utf-8')) + 1)}
+    for index, name in enumerate(_POSE_FIELDS[:3]):
+        columns[name] = pts[:, index]
+    for index, name in enumerate(_POSE_FIELDS[3:]):
+        columns[name] = quaternions[:, index]
+    fields: List[Field] = [('sec', 'i4'), ('nanosec', 'u4'), *_string_fields('frame', frame_id)]
+    fields += [(name, 'f8') for name in _POSE_FIELDS]
+    writer = _Writer()
+    writer.time(stamp_ns)
+    writer.string(frame_id)
+    writer.u32(count)
+    writer.records(fields, columns, count)
+    return writer.bytes()
+
+
+def serialized_plan_path(result: PlanResult, frame_id: str, stamp_ns: int,
+                         goal_orientation: Optional[Sequence[float]] = None) -> bytes:
+    """CDR bytes of :func:`conversions.plan_to_path`."""
+    trajectory = _require_trajectory(result)
+    return serialized_path(trajectory.positions, frame_id, stamp_ns, trajectory.times,
+                           goal_orientation)
+
+
+def serialized_unsmoothed_path(result: PlanResult, frame_id: str, stamp_ns: int,
+                               goal_orientation: Optional[Sequence[float]] = None) -> bytes:
+    """CDR bytes of :func:`conversions.plan_to_unsmoothed_path`."""
+    return serialized_path(result.path, frame_id, stamp_ns, None, goal_orientation)
+
+
+def serialized_trajectory(result: PlanResult, frame_id: str, stamp_ns: int,
+                          goal_orientation: Optional[Sequence[float]] = None,
+                          joint_name: str = 'base_link') -> bytes:
+    """CDR bytes of :func:`conversions.plan_to_trajectory`."""
+    trajectory = _require_trajectory(result)
+    positions = np.asarray(trajectory.positions, dtype=np.float64).reshape(-1, 3)
+    count = len(positions)
+    quaternions = _yaw_quaternions(positions, goal_orientation)
+    durations = np.array([int(round(float(t) * 1e9))
+                          for t in np.asarray(trajectory.times).tolist()], dtype=np.int64)
+    sec, nanosec = _split_ns(durations)
+    ones = np.ones(count, dtype=np.uint32)
+    columns = {'n_transforms': ones, 'n_velocities': ones, 'n_accelerations': ones,
+               'sec': sec, 'nanosec': nanosec}
+    velocities = np.asarray(trajectory.velocities, dtype=np.float64).reshape(-1, 3)
+    accelerations = np.asarray(trajectory.accelerations, dtype=np.float64).reshape(-1, 3)
+    for index, axis in enumerate('xyz'):
+        columns[f't{axis}'] = positions[:, index]
+        columns[f'v{axis}'] = velocities[:, index]
+        columns[f'a{axis}'] = accelerations[:, index]
+        # Angular parts stay zero: the planner does not time the heading.
+        columns[f'w{axis}'] = columns[f'b{axis}'] = np.zeros(count)
+    for index, name in enumerate(('qx', 'qy', 'qz', 'qw')):
+        columns[name] = quaternions[:, index]
+    fields: List[Field] = [('n_transforms', 'u4')]
+    fields += [(name, 'f8') for name in ('tx', 'ty', 'tz', 'qx', 'qy', 'qz', 'qw')]
+    fields += [('n_velocities', 'u4')]
+    fields += [(name, 'f8') for name in ('vx', 'vy', 'vz', 'wx', 'wy', 'wz')]
+    fields += [('n_accelerations', 'u4')]
+    fields += [(name, 'f8') for name in ('ax', 'ay', 'az', 'bx', 'by', 'bz')]
+    fields += [('sec', 'i4'), ('nanosec', 'u4')]
+    writer = _Writer()
+    writer.time(stamp_ns)
+    writer.string(frame_id)
+    writer.u32(1)
+    writer.string(joint_name)
+    writer.u32(count)
+    writer.records(fields, columns, count)
+    return writer.bytes()
+
+
+def _require_trajectory(result: PlanResult):
+    if result.trajectory is None:
+        raise ValueError(f'plan has no trajectory (status {result.status.value})')
+    return result.trajectory
