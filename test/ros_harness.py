@@ -28,13 +28,16 @@ from rclpy.executors import (ExternalShutdownException, ShutdownException,
                              SingleThreadedExecutor)
 from rclpy.parameter import Parameter, parameter_value_to_python
 from rclpy.parameter_client import AsyncParameterClient
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import QoSProfile
 from rclpy.signals import SignalHandlerOptions
 from std_msgs.msg import Header
 from visualization_msgs.msg import Marker, MarkerArray
 
 from uav_global_planner.core.planner import densify
 from uav_global_planner.ros import conversions as conv
+# Re-exported for the tests, which import their QoS from the harness.
+from uav_global_planner.ros.qos import (LATCHED_QOS, MONITOR_QOS, OBSTACLES_QOS,  # noqa: F401
+                                        SENSOR_QOS)
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 PLANNER_YAML = REPO_ROOT / 'config' / 'planner.yaml'
@@ -45,18 +48,6 @@ NODE_NAME = 'global_planner'
 # because a cold numba cache compiles for tens of seconds on a slow machine.
 STARTUP_TIMEOUT_S = 120.0
 
-LATCHED_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
-                         reliability=ReliabilityPolicy.RELIABLE,
-                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
-OBSTACLES_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
-                           reliability=ReliabilityPolicy.RELIABLE,
-                           durability=DurabilityPolicy.TRANSIENT_LOCAL)
-RELIABLE_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=50,
-                          reliability=ReliabilityPolicy.RELIABLE,
-                          durability=DurabilityPolicy.VOLATILE)
-SENSOR_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=5,
-                        reliability=ReliabilityPolicy.BEST_EFFORT,
-                        durability=DurabilityPolicy.VOLATILE)
 
 _domain_counter = itertools.count()
 
@@ -380,13 +371,13 @@ class RosClient:
         rclpy.try_shutdown(context=self.context)
         self._thread.join(5.0)
 
-    def record(self, msg_type: Any, topic: str, qos: QoSProfile = RELIABLE_QOS) -> Recorder:
+    def record(self, msg_type: Any, topic: str, qos: QoSProfile = MONITOR_QOS) -> Recorder:
         """Subscribe and keep every message."""
         recorder = Recorder()
         self.node.create_subscription(msg_type, topic, recorder, qos)
         return recorder
 
-    def publisher(self, msg_type: Any, topic: str, qos: QoSProfile = RELIABLE_QOS,
+    def publisher(self, msg_type: Any, topic: str, qos: QoSProfile = MONITOR_QOS,
                   wait_for_subscribers: int = 1, timeout_s: float = 15.0):
         """A publisher, returned once ``wait_for_subscribers`` subscriptions matched."""
         publisher = self.node.create_publisher(msg_type, topic, qos)
@@ -519,7 +510,7 @@ def min_clearance(points: np.ndarray, obstacles, spacing_m: float = 0.01) -> flo
 # --------------------------------------------------------------------------------------------
 
 #: QoS of the test-side publishers of each planner input topic.
-INPUT_QOS = {'goal_pose': RELIABLE_QOS, 'start_pose': RELIABLE_QOS, 'odom': SENSOR_QOS,
+INPUT_QOS = {'goal_pose': MONITOR_QOS, 'start_pose': MONITOR_QOS, 'odom': SENSOR_QOS,
              'obstacles': OBSTACLES_QOS, 'obstacle_cloud': SENSOR_QOS}
 
 

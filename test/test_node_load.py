@@ -51,7 +51,7 @@ from std_msgs.msg import Header
 from visualization_msgs.msg import Marker, MarkerArray
 
 from ros_harness import (assert_clean_exit, diagnostics_of, marker, marker_array,
-                         min_clearance, NODE_NAME, OBSTACLES_QOS, pose_msg, RELIABLE_QOS,
+                         min_clearance, MONITOR_QOS, NODE_NAME, OBSTACLES_QOS, pose_msg,
                          RosClient, RUN_NAMESPACE, start_planner, unique_domain_id, wait_until)
 from uav_global_planner.core.obstacles import ObstacleSet, Sphere
 from uav_global_planner.core.scene import find_scene, load_scene
@@ -223,7 +223,7 @@ def test_goals_at_100_hz_and_obstacles_at_20_hz_for_30_s() -> None:
     try:
         node_process = psutil.Process(process.process.pid)
         collector = Collector(client)
-        goal_pub = client.publisher(PoseStamped, f'{NAMESPACE}/goal_pose', RELIABLE_QOS)
+        goal_pub = client.publisher(PoseStamped, f'{NAMESPACE}/goal_pose', MONITOR_QOS)
         obstacles_pub = client.publisher(MarkerArray, f'{NAMESPACE}/obstacles', OBSTACLES_QOS)
         poller = ParameterPoller(poll_client)
 

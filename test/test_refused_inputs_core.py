@@ -34,6 +34,7 @@ from typing import Any, Callable, Dict, Tuple
 
 import numpy as np
 import pytest
+import test_scene
 import yaml
 
 from uav_global_planner.cli.main import main as uav_plan_main
@@ -59,21 +60,8 @@ BOX = Box([4.5, 0.5, 0.0], [5.5, 1.5, 1.5])
 POINTS = PointSet([[1.0, 5.0, 1.0], [1.2, 5.0, 1.0]])
 VALID_START, VALID_GOAL = [0.5, 0.5, 0.5], [5.5, 5.5, 3.5]
 
-# A small valid scene document, as yaml.safe_load returns it.
-VALID_SCENE = {
-    'frame_id': 'map',
-    'bounds': {'min': [-2.0, -2.0, 0.0], 'max': [2.0, 2.0, 3.0]},
-    'resolution': 0.25,
-    'safety_margin': 0.2,
-    'adaptive_threshold': 1.5,
-    'start': [-1.5, -1.5, 0.5],
-    'goal': [1.5, 1.5, 2.5],
-    'obstacles': [
-        {'type': 'sphere', 'center': [0.0, 0.0, 1.5], 'radius': 0.5},
-        {'type': 'box', 'min': [1.0, -1.0, 0.0], 'max': [1.5, 0.0, 1.0]},
-        {'type': 'points', 'points': [[-1.0, 1.0, 1.0], [-1.0, 1.1, 1.0]]},
-    ],
-}
+# A small valid scene document, as yaml.safe_load returns it (the one test_scene uses).
+VALID_SCENE = test_scene.VALID
 
 
 @dataclass(frozen=True)

@@ -37,6 +37,24 @@ def as_point(value, name: str) -> np.ndarray:
     return point
 
 
+def positive_number(name: str, value, unit: str = '') -> float:
+    """Return ``value`` as a finite float > 0.
+
+    Raises
+    ------
+    InvalidInputError
+        If ``value`` is not a number, not finite or not positive; the message names ``name``.
+    """
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise InvalidInputError(f'{name} must be a number, got {value!r}') from None
+    if not np.isfinite(number) or number <= 0.0:
+        suffix = f' {unit}' if unit else ''
+        raise InvalidInputError(f'{name} must be a finite number > 0{suffix}, got {number}')
+    return number
+
+
 @dataclass(frozen=True, eq=False)
 class VoxelGrid:
     """Regular 3D grid of nodes inside axis-aligned bounds.
@@ -80,12 +98,7 @@ class VoxelGrid:
         """
         lo = as_point(bounds_min, 'bounds.min')
         hi = as_point(bounds_max, 'bounds.max')
-        try:
-            delta = float(resolution)
-        except (TypeError, ValueError):
-            raise InvalidInputError(f'resolution must be a number, got {resolution!r}') from None
-        if not np.isfinite(delta) or delta <= 0.0:
-            raise InvalidInputError(f'resolution must be a finite number > 0 m, got {delta}')
+        delta = positive_number('resolution', resolution, 'm')
         if np.any(lo >= hi):
             raise InvalidInputError(
                 f'bounds.min must be below bounds.max on every axis, got min {lo.tolist()} '

@@ -90,7 +90,7 @@ from scipy.interpolate import CubicSpline
 
 from uav_global_planner.core.config import SMOOTHING_MODES
 from uav_global_planner.core.errors import InvalidInputError, NoValidPathError
-from uav_global_planner.core.grid import as_point
+from uav_global_planner.core.grid import as_point, positive_number
 from uav_global_planner.core.obstacles import ObstacleSet
 from uav_global_planner.core.result import polyline_length, RepairedStretch
 
@@ -910,13 +910,13 @@ def smooth_path(raw_path, obstacles: ObstacleSet, safety_margin: float, resoluti
     if mode not in SMOOTHING_MODES:
         raise InvalidInputError(
             f'smoothing mode must be one of {", ".join(SMOOTHING_MODES)}, got {mode!r}')
-    spacing = _positive_number('sample_spacing', sample_spacing)
-    step = _positive_number('index_step', index_step)
+    spacing = positive_number('sample_spacing', sample_spacing)
+    step = positive_number('index_step', index_step)
     if step > 1.0:
         raise InvalidInputError(f'index_step must be in (0, 1], got {step}')
     if knot_spacing is None:
         knot_spacing = max(DEFAULT_KNOT_SPACING_FACTOR * delta, DEFAULT_KNOT_SPACING_MIN)
-    knot_gap = _positive_number('knot_spacing', knot_spacing)
+    knot_gap = positive_number('knot_spacing', knot_spacing)
     box = _check_bounds(points, bounds)
     path = _dedupe(points)
     clearance = np.asarray(obstacles.distance(path))
@@ -953,20 +953,10 @@ def smooth_path(raw_path, obstacles: ObstacleSet, safety_margin: float, resoluti
         bad = np.flatnonzero(check.violated)
         if not len(bad):
             break
-        _repair(layout, chain, check, bad, events, obstacles, gamma, delta)
+        _repair(layout, chain, check, bad, events, obstacles, gamma, delta, box)
     else:  # pragma: no cover - each round halves a knot gap or straightens a polyline gap
         raise NoValidPathError('smoothing repair did not converge')
     return _assemble(path, layout, chain, check, events, mode, spacing, step)
-
-
-def _positive_number(name: str, value) -> float:
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        raise InvalidInputError(f'{name} must be a number, got {value!r}') from None
-    if not math.isfinite(number) or number <= 0.0:
-        raise InvalidInputError(f'{name} must be a finite number > 0, got {number}')
-    return number
 
 
 def _check_bounds(points: np.ndarray, bounds) -> Optional[Tuple[np.ndarray, np.ndarray]]:
@@ -983,7 +973,8 @@ def _check_bounds(points: np.ndarray, bounds) -> Optional[Tuple[np.ndarray, np.n
 
 
 def _repair(layout: _Layout, chain: _Chain, check: _Check, bad: np.ndarray, events: list,
-            obstacles: ObstacleSet, gamma: float, delta: float) -> None:
+            obstacles: ObstacleSet, gamma: float, delta: float,
+            box: Optional[Tuple[np.ndarray, np.ndarray]]) -> None:
     """Split each violating spline piece with polyline knots, or straighten its gap.
 
     A piece longer than the default knot spacing is cut into pieces of at most that length (one
@@ -991,6 +982,9 @@ def _repair(layout: _Layout, chain: _Chain, check: _Check, bad: np.ndarray, even
     ``MIN_KNOT_GAP_FRACTION * delta``, or whose new knot would itself be inside the margin
     (possible on an uncertified raw edge), has its whole polyline gap straightened. Splits use
     ``DEFAULT_KNOT_SPACING_FACTOR * delta``, the scale of the clearance the shortcut leaves.
+    A piece that only leaves the bounds over a gap lying on a face of the bounds (a stretch
+    along the ground) is straightened at once: any bend there points out of the box on one side,
+    so more knots would only take more rounds to reach the same straight segment.
     """
     straighten = {}
     split = []
@@ -1003,7 +997,9 @@ def _repair(layout: _Layout, chain: _Chain, check: _Check, bad: np.ndarray, even
             # nothing between its two waypoints can help.
             raise _no_path(layout, gap, before, gamma, delta)
         a, b = chain.sig[p]
-        if b - a > MIN_KNOT_GAP_FRACTION * delta:
+        if not check.cert.violated[p] and _on_bounds_face(layout, gap, box):
+            straighten[gap] = min(before, straighten.get(gap, np.inf))
+        elif b - a > MIN_KNOT_GAP_FRACTION * delta:
             parts = max(2, int(math.ceil((b - a) / longest)))
             split.append((p, a + (b - a) * np.arange(1, parts) / parts))
         else:
@@ -1028,6 +1024,17 @@ def _repair(layout: _Layout, chain: _Chain, check: _Check, bad: np.ndarray, even
         inside = (layout.knots > a) & (layout.knots < b)
         layout.knots = layout.knots[~inside]
         events.append((float(a), float(b), 'polyline', before))
+
+
+def _on_bounds_face(layout: _Layout, gap: int,
+                    box: Optional[Tuple[np.ndarray, np.ndarray]]) -> bool:
+    """True when both ends of polyline gap ``gap`` lie on the same face of the bounds box."""
+    if box is None:
+        return False
+    ends = layout.vertices[gap:gap + 2]
+    on_low = np.all(np.abs(ends - box[0]) <= _BOUNDS_TOLERANCE, axis=0)
+    on_high = np.all(np.abs(ends - box[1]) <= _BOUNDS_TOLERANCE, axis=0)
+    return bool(np.any(on_low | on_high))
 
 
 def _single_point(path: np.ndarray, obstacles: ObstacleSet, mode: str) -> SmoothedPath:

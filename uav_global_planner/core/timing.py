@@ -34,19 +34,9 @@ from typing import List
 
 import numpy as np
 
-from uav_global_planner.core.errors import InvalidInputError
+from uav_global_planner.core.grid import positive_number
 from uav_global_planner.core.result import Trajectory
 from uav_global_planner.core.smoothing import SmoothedPath
-
-
-def _positive(name: str, value: float) -> float:
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        raise InvalidInputError(f'{name} must be a number, got {value!r}') from None
-    if not math.isfinite(number) or number <= 0.0:
-        raise InvalidInputError(f'{name} must be a finite number > 0, got {number}')
-    return number
 
 
 def _split(vectors: np.ndarray):
@@ -85,10 +75,10 @@ def time_parameterize(smoothed: SmoothedPath, max_speed_horizontal: float,
         ``times`` strictly increasing from 0 [s]; ``positions`` the samples [m]; ``velocities``
         [m/s] zero at the start, the goal and every stop point; ``accelerations`` [m/s^2].
     """
-    vh = _positive('max_speed_horizontal', max_speed_horizontal)
-    vz = _positive('max_speed_vertical', max_speed_vertical)
-    ah = _positive('max_accel_horizontal', max_accel_horizontal)
-    az = _positive('max_accel_vertical', max_accel_vertical)
+    vh = positive_number('max_speed_horizontal', max_speed_horizontal)
+    vz = positive_number('max_speed_vertical', max_speed_vertical)
+    ah = positive_number('max_accel_horizontal', max_accel_horizontal)
+    az = positive_number('max_accel_vertical', max_accel_vertical)
     positions = smoothed.positions
     count = len(positions)
     if count < 2:

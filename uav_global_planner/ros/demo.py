@@ -24,23 +24,17 @@ from nav_msgs.msg import Path as PathMsg
 import numpy as np
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 
 from uav_global_planner.core.errors import InvalidInputError
 from uav_global_planner.core.scene import find_scene, load_scene, Scene
 from uav_global_planner.ros import conversions as conv
+from uav_global_planner.ros.qos import LATCHED_QOS, MONITOR_QOS
 
 DEFAULT_SCENE = 'paper_medium'
 _NODE_FQN = '/global_planner'
 _PACKAGE = 'uav_global_planner'
 
-_LATCHED_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
-                          reliability=ReliabilityPolicy.RELIABLE,
-                          durability=DurabilityPolicy.TRANSIENT_LOCAL)
-_DIAGNOSTICS_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=50,
-                              reliability=ReliabilityPolicy.RELIABLE,
-                              durability=DurabilityPolicy.VOLATILE)
 
 # After the first plan, wait this long for replans (obstacles arriving after the goal) [s].
 _SETTLE_S = 1.0
@@ -121,11 +115,11 @@ class _Listener:
         self.unsmoothed: List[PathMsg] = []
         self.diagnostics: List[tuple] = []
         node = self.node
-        node.create_subscription(PathMsg, 'plan', self._store(self.plans), _LATCHED_QOS)
+        node.create_subscription(PathMsg, 'plan', self._store(self.plans), LATCHED_QOS)
         node.create_subscription(PathMsg, 'unsmoothed_plan', self._store(self.unsmoothed),
-                                 _LATCHED_QOS)
+                                 LATCHED_QOS)
         node.create_subscription(DiagnosticArray, '/diagnostics', self._on_diagnostics,
-                                 _DIAGNOSTICS_QOS)
+                                 MONITOR_QOS)
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(node)
         self.thread = threading.Thread(target=self._spin, daemon=True)

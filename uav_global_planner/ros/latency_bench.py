@@ -52,7 +52,6 @@ from rclpy.executors import (ExternalShutdownException, ShutdownException,
                              SingleThreadedExecutor)
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
 from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import PointCloud2
@@ -64,6 +63,7 @@ from uav_global_planner.core.errors import InvalidInputError
 from uav_global_planner.core.scene import find_scene, load_scene, Scene
 from uav_global_planner.ros import conversions as conv
 from uav_global_planner.ros.demo import _scene_overrides, find_config
+from uav_global_planner.ros.qos import COMMAND_QOS, LATCHED_QOS, MONITOR_QOS
 
 #: Scenes whose latency is measured when none are named.
 DEFAULT_SCENES = ('paper_medium', 'paper_high')
@@ -81,18 +81,6 @@ _WARM_UP_GOALS = 4
 # Goals per algorithm on the memory scene (latency there is a by-product).
 _MEMORY_GOALS = 2
 
-_LATCHED_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
-                          reliability=ReliabilityPolicy.RELIABLE,
-                          durability=DurabilityPolicy.TRANSIENT_LOCAL)
-_COMMAND_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=5,
-                          reliability=ReliabilityPolicy.RELIABLE,
-                          durability=DurabilityPolicy.VOLATILE)
-_DIAGNOSTICS_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=50,
-                              reliability=ReliabilityPolicy.RELIABLE,
-                              durability=DurabilityPolicy.VOLATILE)
-_CLOUD_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
-                        reliability=ReliabilityPolicy.RELIABLE,
-                        durability=DurabilityPolicy.VOLATILE)
 
 # A plan must end within this distance of the goal it answers [m] (it ends exactly there).
 _GOAL_MATCH_M = 1e-6
@@ -253,12 +241,12 @@ class _Client:
         self.plans = _Inbox(self.changed, PathMsg)
         self.diagnostics = _Inbox(self.changed)
         node = self.node
-        node.create_subscription(PathMsg, 'plan', self.plans, _LATCHED_QOS, raw=True)
+        node.create_subscription(PathMsg, 'plan', self.plans, LATCHED_QOS, raw=True)
         node.create_subscription(DiagnosticArray, '/diagnostics', self.diagnostics,
-                                 _DIAGNOSTICS_QOS)
-        self.goal_pub = node.create_publisher(PoseStamped, 'goal_pose', _COMMAND_QOS)
-        self.obstacles_pub = node.create_publisher(MarkerArray, 'obstacles', _LATCHED_QOS)
-        self.cloud_pub = node.create_publisher(PointCloud2, 'obstacle_cloud', _CLOUD_QOS)
+                                 MONITOR_QOS)
+        self.goal_pub = node.create_publisher(PoseStamped, 'goal_pose', COMMAND_QOS)
+        self.obstacles_pub = node.create_publisher(MarkerArray, 'obstacles', LATCHED_QOS)
+        self.cloud_pub = node.create_publisher(PointCloud2, 'obstacle_cloud', COMMAND_QOS)
         self.parameters = AsyncParameterClient(node, self.node_fqn)
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(node)

@@ -48,7 +48,6 @@ from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import PointCloud2
 from trajectory_msgs.msg import MultiDOFJointTrajectory
 from visualization_msgs.msg import MarkerArray
@@ -64,6 +63,8 @@ from uav_global_planner.core.status import (NAV2_CODE_BY_STATUS, NAV2_GOAL_OUTSI
                                             NAV2_UNKNOWN, PlanStatus)
 from uav_global_planner.ros import cdr
 from uav_global_planner.ros import conversions as conv
+from uav_global_planner.ros.qos import (COMMAND_QOS, DIAGNOSTICS_QOS, LATCHED_QOS, OBSTACLES_QOS,
+                                        SENSOR_QOS)
 
 #: Name of the node unless remapped with ``--ros-args -r __node:=...``.
 NODE_NAME = 'global_planner'
@@ -82,33 +83,6 @@ _RETRY_ON_OBSTACLES = (PlanStatus.NO_VALID_PATH, PlanStatus.TIMEOUT, PlanStatus.
 EXIT_BAD_SETTINGS = 2
 
 CLOUD_NON_FINITE_MODES = ('drop', 'refuse')
-
-# --------------------------------------------------------------------------------------------
-# QoS: explicit everywhere, because the defaults do not fit latched maps and plans.
-# --------------------------------------------------------------------------------------------
-
-#: Latched outputs: a late subscriber (RViz, a controller started later) gets the last plan.
-LATCHED_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
-                         reliability=ReliabilityPolicy.RELIABLE,
-                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
-#: Obstacle markers: a map-like topic; a late-starting planner still gets the published markers.
-#: Depth 10 keeps several incremental arrays of a publisher with a deeper history.
-OBSTACLES_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
-                           reliability=ReliabilityPolicy.RELIABLE,
-                           durability=DurabilityPolicy.TRANSIENT_LOCAL)
-#: Commands (goal, start pose): reliable, as RViz publishes them; latest wins anyway.
-COMMAND_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=5,
-                         reliability=ReliabilityPolicy.RELIABLE,
-                         durability=DurabilityPolicy.VOLATILE)
-#: Sensor streams (odometry, clouds): best effort matches reliable and best-effort publishers,
-#: and only the newest sample matters.
-SENSOR_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
-                        reliability=ReliabilityPolicy.BEST_EFFORT,
-                        durability=DurabilityPolicy.VOLATILE)
-#: /diagnostics as diagnostic_aggregator expects it.
-DIAGNOSTICS_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
-                             reliability=ReliabilityPolicy.RELIABLE,
-                             durability=DurabilityPolicy.VOLATILE)
 
 
 # --------------------------------------------------------------------------------------------

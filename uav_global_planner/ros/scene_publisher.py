@@ -20,7 +20,6 @@ import numpy as np
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.utilities import remove_ros_args
 from sensor_msgs.msg import PointCloud2
 from visualization_msgs.msg import MarkerArray
@@ -28,20 +27,11 @@ from visualization_msgs.msg import MarkerArray
 from uav_global_planner.core.errors import InvalidInputError
 from uav_global_planner.core.scene import find_scene, load_scene, Scene
 from uav_global_planner.ros import conversions as conv
+from uav_global_planner.ros.qos import COMMAND_QOS, LATCHED_QOS
 
 #: Scene published when none is named.
 DEFAULT_SCENE = 'paper_medium'
 
-# Same QoS as the planner's subscriptions (see planner_node): latched obstacles, reliable commands.
-_OBSTACLES_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
-                            reliability=ReliabilityPolicy.RELIABLE,
-                            durability=DurabilityPolicy.TRANSIENT_LOCAL)
-_COMMAND_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=5,
-                          reliability=ReliabilityPolicy.RELIABLE,
-                          durability=DurabilityPolicy.VOLATILE)
-_CLOUD_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
-                        reliability=ReliabilityPolicy.RELIABLE,
-                        durability=DurabilityPolicy.VOLATILE)
 
 _TICK_S = 0.05
 _CLOUD_PERIOD_S = 1.0
@@ -80,10 +70,10 @@ class ScenePublisher:
         self._goal_yaw = (goal_yaw if goal_yaw is not None
                           else math.atan2(float(delta[1]), float(delta[0])))
         self._log = node.get_logger()
-        self._obstacles_pub = node.create_publisher(MarkerArray, 'obstacles', _OBSTACLES_QOS)
-        self._cloud_pub = node.create_publisher(PointCloud2, 'obstacle_cloud', _CLOUD_QOS)
-        self._start_pub = node.create_publisher(PoseStamped, 'start_pose', _COMMAND_QOS)
-        self._goal_pub = node.create_publisher(PoseStamped, 'goal_pose', _COMMAND_QOS)
+        self._obstacles_pub = node.create_publisher(MarkerArray, 'obstacles', LATCHED_QOS)
+        self._cloud_pub = node.create_publisher(PointCloud2, 'obstacle_cloud', COMMAND_QOS)
+        self._start_pub = node.create_publisher(PoseStamped, 'start_pose', COMMAND_QOS)
+        self._goal_pub = node.create_publisher(PoseStamped, 'goal_pose', COMMAND_QOS)
         self._matched_at: Optional[float] = None
         self._sent_at: Optional[float] = None
         self._start_sent: Optional[float] = None
