@@ -13,7 +13,7 @@ import sys
 import pytest
 
 from ros_harness import ros_environment, STARTUP_TIMEOUT_S, unique_domain_id
-from uav_global_planner.cli.bench import format_ros_report, main as bench_main
+from uav_global_planner.cli.bench import format_ros_report
 from uav_global_planner.core.config import ALGORITHMS
 
 GOALS = 4
@@ -91,31 +91,29 @@ def test_report_table_shows_the_figures(figures):
         assert algorithm in report
 
 
-def test_cli_bench_prints_ros_figures_after_the_core_tables(monkeypatch, capsys):
-    """``uav-plan bench --ros``: the ROS figures come from the child process, after the core
-    tables (both measurements replaced by canned figures here)."""
-    from uav_global_planner.cli import bench
-    core = {'scene': 'paper_medium', 'voxels': 52111, 'shape': [41, 41, 31],
-            'grid_build_s': 0.001, 'peak_rss_mb': 100.0, 'rows': []}
-    ros = {'domain_id': 7, 'goals': 3, 'cpus': 2, 'load_average': 0.5,
-           'load_average_after': 0.6, 'memory': None,
-           'scenes': [{'scene': 'paper_medium', 'startup_s': 1.0, 'goals': 3,
-                       'plans_received': 3, 'failures': [],
-                       'latency': {'median_ms': 12.5, 'p90_ms': 14.0, 'max_ms': 15.0,
-                                   'min_ms': 10.0},
-                       'bytes_latency': {'median_ms': 9.5, 'p90_ms': 11.0, 'max_ms': 12.0,
-                                         'min_ms': 7.0},
-                       'node_search_ms': 0.1, 'node_smoothing_ms': 5.0, 'poses': 170,
-                       'peak_rss_mb': 220.0, 'exit_code': 0}]}
-    calls = []
-    monkeypatch.setattr(bench, '_measure_in_subprocess', lambda name: core)
-    monkeypatch.setattr(bench, 'measure_ros', lambda options: calls.append(options) or ros)
-    assert bench_main(['paper_medium', '--ros', '--ros-goals', '3']) == 0
-    text = capsys.readouterr().out
-    assert calls == [['--goals', '3']]
+@pytest.mark.ros
+@pytest.mark.slow
+def test_cli_bench_prints_ros_figures_after_the_core_tables():
+    """``uav-plan bench --ros`` for real: core tables first, then the ROS figures measured by a
+    child benchmark process talking to a real planner_node."""
+    domain_id = unique_domain_id()
+    command = [sys.executable, '-m', 'uav_global_planner.cli.main', 'bench', 'paper_medium',
+               '--ros', '--ros-goals', '2']
+    text_run = subprocess.run(command, env=ros_environment(domain_id), capture_output=True,
+                              text=True, timeout=900)
+    assert text_run.returncode == 0, text_run.stdout + text_run.stderr
+    text = text_run.stdout
     assert text.index('paper_medium: 41 x 41 x 31') < text.index('ROS: goal published')
-    assert '12.5' in text
-    assert bench_main(['paper_medium', '--ros', '--json']) == 0
-    assert json.loads(capsys.readouterr().out) == {'scenes': [core], 'ros': ros}
-    assert bench_main(['paper_medium', '--json']) == 0
-    assert json.loads(capsys.readouterr().out) == {'scenes': [core]}
+    assert 'VmHWM' in text and '2/2' in text
+    json_run = subprocess.run(command + ['--json'], env=ros_environment(domain_id),
+                              capture_output=True, text=True, timeout=900)
+    assert json_run.returncode == 0, json_run.stdout + json_run.stderr
+    figures = json.loads(json_run.stdout)
+    assert [scene['scene'] for scene in figures['scenes']] == ['paper_medium']
+    assert {row['algorithm'] for row in figures['scenes'][0]['rows']} == set(ALGORITHMS)
+    measured = {scene['scene']: scene for scene in figures['ros']['scenes']}
+    assert measured, figures['ros']
+    for scene in measured.values():
+        assert scene['plans_received'] == scene['goals'] == 2
+        assert _positive(scene['latency']['median_ms'])
+    assert _positive(figures['ros']['memory']['peak_rss_mb'])
