@@ -23,18 +23,15 @@ from geometry_msgs.msg import Point, PoseStamped, Quaternion, Vector3
 from nav_msgs.msg import Odometry, Path as PathMsg
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
-import rclpy
-from rclpy.executors import (ExternalShutdownException, ShutdownException,
-                             SingleThreadedExecutor)
 from rclpy.parameter import Parameter, parameter_value_to_python
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import QoSProfile
-from rclpy.signals import SignalHandlerOptions
 from std_msgs.msg import Header
 from visualization_msgs.msg import Marker, MarkerArray
 
 from uav_global_planner.core.planner import densify
 from uav_global_planner.ros import conversions as conv
+from uav_global_planner.ros.background_node import BackgroundNode
 # Re-exported for the tests, which import their QoS from the harness.
 from uav_global_planner.ros.qos import (LATCHED_QOS, MONITOR_QOS, OBSTACLES_QOS,  # noqa: F401
                                         SENSOR_QOS)
@@ -339,37 +336,13 @@ class RosClient:
     def __init__(self, domain_id: int, name: str = 'test_client') -> None:
         # The test process is not started through ros_environment(); set what DDS reads here.
         os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
-        self.context = rclpy.Context()
-        rclpy.init(context=self.context, domain_id=domain_id,
-                   signal_handler_options=SignalHandlerOptions.NO)
-        self.node = rclpy.create_node(name, context=self.context)
-        self.executor = SingleThreadedExecutor(context=self.context)
-        self.executor.add_node(self.node)
-        self._closing = False
-        self._thread = threading.Thread(target=self._spin, daemon=True)
-        self._thread.start()
-
-    def _spin(self) -> None:
-        try:
-            self.executor.spin()
-        except (ExternalShutdownException, ShutdownException):
-            pass
-        except Exception:  # noqa: BLE001 - handles destroyed while closing
-            if not self._closing:
-                raise
+        self._background = BackgroundNode(name, domain_id)
+        self.context = self._background.context
+        self.node = self._background.node
 
     def close(self) -> None:
-        """Stop spinning, then release the node and the context.
-
-        The spin thread is joined before the node is destroyed: destroying it while the
-        executor still waits on its guard conditions raises ``InvalidHandle`` in that thread.
-        """
-        self._closing = True
-        self.executor.shutdown(timeout_sec=2.0)
-        self._thread.join(5.0)
-        self.node.destroy_node()
-        rclpy.try_shutdown(context=self.context)
-        self._thread.join(5.0)
+        """Stop spinning, then release the node and the context."""
+        self._background.close()
 
     def record(self, msg_type: Any, topic: str, qos: QoSProfile = MONITOR_QOS) -> Recorder:
         """Subscribe and keep every message."""

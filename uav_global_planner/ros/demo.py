@@ -22,13 +22,11 @@ from typing import Dict, List, Optional, Sequence
 from diagnostic_msgs.msg import DiagnosticArray
 from nav_msgs.msg import Path as PathMsg
 import numpy as np
-import rclpy
-from rclpy.executors import SingleThreadedExecutor
-from rclpy.signals import SignalHandlerOptions
 
 from uav_global_planner.core.errors import InvalidInputError
 from uav_global_planner.core.scene import find_scene, load_scene, Scene
 from uav_global_planner.ros import conversions as conv
+from uav_global_planner.ros.background_node import BackgroundNode
 from uav_global_planner.ros.qos import LATCHED_QOS, MONITOR_QOS
 
 DEFAULT_SCENE = 'paper_medium'
@@ -106,10 +104,8 @@ class _Listener:
     """Collects the planner's plans and diagnostics on the demo's own rclpy context."""
 
     def __init__(self, domain_id: int) -> None:
-        self.context = rclpy.Context()
-        rclpy.init(context=self.context, domain_id=domain_id,
-                   signal_handler_options=SignalHandlerOptions.NO)
-        self.node = rclpy.create_node('uav_demo', context=self.context)
+        self._background = BackgroundNode('uav_demo', domain_id)
+        self.node = self._background.node
         self.lock = threading.Condition()
         self.plans: List[PathMsg] = []
         self.unsmoothed: List[PathMsg] = []
@@ -120,16 +116,6 @@ class _Listener:
                                  LATCHED_QOS)
         node.create_subscription(DiagnosticArray, '/diagnostics', self._on_diagnostics,
                                  MONITOR_QOS)
-        self.executor = SingleThreadedExecutor(context=self.context)
-        self.executor.add_node(node)
-        self.thread = threading.Thread(target=self._spin, daemon=True)
-        self.thread.start()
-
-    def _spin(self) -> None:
-        try:
-            self.executor.spin()
-        except Exception:  # noqa: BLE001 - the context shuts down under it at the end
-            pass
 
     def _store(self, target: list):
         def callback(msg) -> None:
@@ -156,10 +142,7 @@ class _Listener:
                 and self.node.count_publishers('/diagnostics') > 0)
 
     def close(self) -> None:
-        self.executor.shutdown(timeout_sec=2.0)
-        self.thread.join(5.0)
-        self.node.destroy_node()
-        rclpy.try_shutdown(context=self.context)
+        self._background.close()
 
 
 def _wait(condition, children: List['_Child'], timeout_s: float) -> bool:

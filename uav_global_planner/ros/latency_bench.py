@@ -47,13 +47,9 @@ from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Path as PathMsg
 import numpy as np
-import rclpy
-from rclpy.executors import (ExternalShutdownException, ShutdownException,
-                             SingleThreadedExecutor)
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.serialization import deserialize_message
-from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import PointCloud2
 from visualization_msgs.msg import MarkerArray
 
@@ -62,6 +58,7 @@ from uav_global_planner.core.config import ALGORITHMS
 from uav_global_planner.core.errors import InvalidInputError
 from uav_global_planner.core.scene import find_scene, load_scene, Scene
 from uav_global_planner.ros import conversions as conv
+from uav_global_planner.ros.background_node import BackgroundNode
 from uav_global_planner.ros.demo import _scene_overrides, find_config
 from uav_global_planner.ros.qos import COMMAND_QOS, LATCHED_QOS, MONITOR_QOS
 
@@ -231,11 +228,8 @@ class _Client:
     def __init__(self, domain_id: int, namespace: str) -> None:
         self.namespace = namespace
         self.node_fqn = f'{namespace}/{_NODE_NAME}'
-        self.context = rclpy.Context()
-        rclpy.init(context=self.context, domain_id=domain_id,
-                   signal_handler_options=SignalHandlerOptions.NO)
-        self.node = rclpy.create_node('uav_latency_bench', namespace=namespace,
-                                      context=self.context)
+        self._background = BackgroundNode('uav_latency_bench', domain_id, namespace)
+        self.node = self._background.node
         self.changed = threading.Condition()
         # Raw, to time the arrival of the bytes and the Python deserialisation apart.
         self.plans = _Inbox(self.changed, PathMsg)
@@ -248,23 +242,10 @@ class _Client:
         self.obstacles_pub = node.create_publisher(MarkerArray, 'obstacles', LATCHED_QOS)
         self.cloud_pub = node.create_publisher(PointCloud2, 'obstacle_cloud', COMMAND_QOS)
         self.parameters = AsyncParameterClient(node, self.node_fqn)
-        self.executor = SingleThreadedExecutor(context=self.context)
-        self.executor.add_node(node)
-        self._thread = threading.Thread(target=self._spin, daemon=True)
-        self._thread.start()
-
-    def _spin(self) -> None:
-        try:
-            self.executor.spin()
-        except (ExternalShutdownException, ShutdownException):
-            pass
 
     def close(self) -> None:
         """Stop spinning and release the context."""
-        self.executor.shutdown(timeout_sec=2.0)
-        self._thread.join(5.0)
-        self.node.destroy_node()
-        rclpy.try_shutdown(context=self.context)
+        self._background.close()
 
     def mark(self) -> tuple:
         """Message counts so far, to wait only for newer messages."""
