@@ -106,19 +106,9 @@ def _config(**changes: Any) -> Callable[[], Any]:
 
 
 def _with(path: Tuple, value: Any) -> Dict[str, Any]:
-    """A deep copy of the valid scene with one key set (``KeyError``: deleted)."""
-    if not path:
-        return value
-    data = copy.deepcopy(VALID_SCENE)
-    *parents, last = path
-    target = data
-    for key in parents:
-        target = target[key]
-    if value is KeyError:
-        del target[last]
-    else:
-        target[last] = value
-    return data
+    """A deep copy of the valid scene with one key set (``KeyError``: deleted); an empty path
+    gives ``value`` itself as the whole document."""
+    return test_scene._with(path, value) if path else value
 
 
 def _shell(center, half: float, wall: float = 0.1) -> list:

@@ -26,7 +26,7 @@ import numpy as np
 from uav_global_planner.core.errors import InvalidInputError
 from uav_global_planner.core.scene import find_scene, load_scene, Scene
 from uav_global_planner.ros import conversions as conv
-from uav_global_planner.ros.background_node import BackgroundNode
+from uav_global_planner.ros.background_node import BackgroundNode, choose_domain_id
 from uav_global_planner.ros.qos import LATCHED_QOS, MONITOR_QOS
 
 DEFAULT_SCENE = 'paper_medium'
@@ -263,12 +263,7 @@ def main(argv: Optional[List[str]] = None) -> int:
     except (InvalidInputError, FileNotFoundError) as error:
         print(f'uav-demo: {error}', file=sys.stderr)
         return 2
-    if options.domain_id is not None:
-        domain_id = options.domain_id
-    elif os.environ.get('ROS_DOMAIN_ID', '').isdigit():
-        domain_id = int(os.environ['ROS_DOMAIN_ID'])
-    else:
-        domain_id = 1 + os.getpid() % 101
+    domain_id = choose_domain_id(options.domain_id)
     output = options.output or Path(f'uav_demo_{scene.name}.png')
     log_dir = Path(tempfile.mkdtemp(prefix='uav_demo_'))
     env = dict(os.environ)

@@ -58,7 +58,7 @@ from uav_global_planner.core.config import ALGORITHMS
 from uav_global_planner.core.errors import InvalidInputError
 from uav_global_planner.core.scene import find_scene, load_scene, Scene
 from uav_global_planner.ros import conversions as conv
-from uav_global_planner.ros.background_node import BackgroundNode
+from uav_global_planner.ros.background_node import BackgroundNode, choose_domain_id
 from uav_global_planner.ros.demo import _scene_overrides, find_config
 from uav_global_planner.ros.qos import COMMAND_QOS, LATCHED_QOS, MONITOR_QOS
 
@@ -669,12 +669,7 @@ def main(argv: Optional[List[str]] = None) -> int:
     if options.goals < 1:
         print('latency_bench: --goals must be >= 1', file=sys.stderr)
         return 2
-    if options.domain_id is not None:
-        domain_id = options.domain_id
-    elif os.environ.get('ROS_DOMAIN_ID', '').isdigit():
-        domain_id = int(os.environ['ROS_DOMAIN_ID'])
-    else:
-        domain_id = 1 + os.getpid() % 101
+    domain_id = choose_domain_id(options.domain_id)
     # The client in this process reads it from the environment.
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     memory_scene = None if options.no_memory else options.memory_scene
