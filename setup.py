@@ -19,7 +19,13 @@ setup(
     ],
     # Versions are pinned in requirements.txt only.
     install_requires=['setuptools', 'numpy', 'scipy', 'pyyaml', 'numba', 'matplotlib'],
-    extras_require={'test': ['pytest', 'hypothesis', 'psutil', 'flake8']},
+    extras_require={'test': ['pytest', 'hypothesis', 'psutil', 'flake8', 'pymavlink', 'mavsdk'],
+                    # Map frame <-> WGS84 for mission export (core/geodesy.py).
+                    'geodesy': ['pymap3d'],
+                    # Readers of map files (core/mapfiles.py), imported only when used.
+                    'maps': ['pypcd4', 'plyfile', 'laspy', 'lazrs', 'octomap-python'],
+                    # The interactive 3D view of uav-plan plot --html.
+                    'plot': ['plotly']},
     zip_safe=True,
     maintainer='uav_global_planner maintainers',
     maintainer_email='maintainers@uav-global-planner.invalid',

@@ -29,6 +29,12 @@ if [ ! -x "$venv/bin/python" ] || [ "$(cat "$stamp" 2>/dev/null)" != "$wanted" ]
   rm -f "$log"
   echo "$wanted" > "$stamp"
 fi
+# Nav2's planner actions (nav2_msgs is not on PyPI), built from interfaces/ into the venv once:
+# the script keeps its own stamp and returns at once when nothing changed. Without them the
+# planner node still runs, with its topics and GetPlan.
+if ! bash "$repo_root/scripts/build_interfaces.sh" "$venv"; then
+  echo "warning: nav2_msgs not built; planner_node starts without its Nav2 action servers" >&2
+fi
 
 export PATH="$venv/bin:$PATH"
 export VIRTUAL_ENV="$venv"

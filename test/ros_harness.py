@@ -33,8 +33,8 @@ from uav_global_planner.core.planner import densify
 from uav_global_planner.ros import conversions as conv
 from uav_global_planner.ros.background_node import BackgroundNode
 # Re-exported for the tests, which import their QoS from the harness.
-from uav_global_planner.ros.qos import (LATCHED_QOS, MONITOR_QOS, OBSTACLES_QOS,  # noqa: F401
-                                        SENSOR_QOS)
+from uav_global_planner.ros.qos import (CLOUD_QOS, LATCHED_QOS, MONITOR_QOS,  # noqa: F401
+                                        OBSTACLES_QOS, SENSOR_QOS)
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 PLANNER_YAML = REPO_ROOT / 'config' / 'planner.yaml'
@@ -484,7 +484,7 @@ def min_clearance(points: np.ndarray, obstacles, spacing_m: float = 0.01) -> flo
 
 #: QoS of the test-side publishers of each planner input topic.
 INPUT_QOS = {'goal_pose': MONITOR_QOS, 'start_pose': MONITOR_QOS, 'odom': SENSOR_QOS,
-             'obstacles': OBSTACLES_QOS, 'obstacle_cloud': SENSOR_QOS}
+             'obstacles': OBSTACLES_QOS, 'obstacle_cloud': CLOUD_QOS}
 
 
 class PlannerClient:

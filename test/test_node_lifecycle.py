@@ -1,8 +1,8 @@
 """Planner node processes under load and at the edges of their life.
 
 * A multi-second plan (a goal sealed in a hollow box on a 6-million-node grid, so the search has
-  to exhaust the grid) must not block the parameter services, and goals arriving meanwhile are
-  coalesced into one follow-up plan for the latest of them.
+  to exhaust the grid) must not block the parameter services; goals arriving meanwhile cancel
+  it, and the latest of them is planned.
 * SIGINT during such a plan and SIGTERM on an idle node exit with code 0 and no traceback.
 * Invalid parameters at start-up stop the node with a clear message and exit code 2.
 
@@ -82,7 +82,6 @@ def test_long_plan_keeps_services_responsive_and_goals_coalesce_then_sigint():
                        what='the walls in use')
 
         goals.publish(pose_msg(SEALED_GOAL))
-        plan_started = time.monotonic()
         time.sleep(0.3)
         slowest = 0.0
         for number in range(4):
@@ -95,29 +94,28 @@ def test_long_plan_keeps_services_responsive_and_goals_coalesce_then_sigint():
             goals.publish(pose_msg(FOLLOW_UP_GOALS[number]))
         goals.publish(pose_msg(FOLLOW_UP_GOALS[-1]))
         assert slowest < 1.0, f'parameter round trip took {slowest:.2f} s during the plan'
-        assert plan_events(diagnostics) == [], (
-            'the long plan ended before the parameter checks; the test proved nothing '
-            f'(it ran {time.monotonic() - plan_started:.1f} s)')
-
-        first = diagnostics.wait_for(
-            lambda m: bool(plan_events_in(m)), 60.0, what='the end of the long plan')
-        first_values = diagnostics_of(NODE, first)
-        assert first_values['status'] == 'no_valid_path', first_values
-        assert first_values['status_code'] == '208'
-        # One follow-up plan, to the latest goal only.
-        mark = diagnostics.messages.index(first) + 1
-        follow = diagnostics.wait_for(lambda m: bool(plan_events_in(m)), 20.0, mark,
-                                      'the follow-up plan')
-        follow_values = diagnostics_of(NODE, follow)
-        assert follow_values['status'] == 'ok', follow_values
-        assert follow_values['goal'] == conv.format_value(np.array(FOLLOW_UP_GOALS[-1]))
+        # The newer goals and settings preempt the long plan: it is cancelled, never published,
+        # and the latest goal is planned (goals coalesce: the worker takes the newest).
+        cancelled = diagnostics.wait_for(
+            lambda m: (diagnostics_of(NODE, m) or {}).get('event') == 'plan_cancelled', 20.0,
+            what='the long plan cancelled')
+        cancelled_values = diagnostics_of(NODE, cancelled)
+        assert cancelled_values['goal'] == conv.format_value(np.array(SEALED_GOAL))
+        assert 'no_valid_path' not in [e['status'] for e in plan_events(diagnostics)]
+        latest = conv.format_value(np.array(FOLLOW_UP_GOALS[-1]))
+        diagnostics.wait_for(lambda m: (diagnostics_of(NODE, m) or {}).get('goal') == latest
+                             and plan_events_in(m), 20.0, what='the plan of the latest goal')
         time.sleep(1.0)
-        assert len(plan_events(diagnostics)) == 2, plan_events(diagnostics)
+        events = plan_events(diagnostics)
+        assert events[-1]['status'] == 'ok' and events[-1]['goal'] == latest, events
+        followers = {conv.format_value(np.array(goal)) for goal in FOLLOW_UP_GOALS}
+        assert all(e['status'] == 'ok' and e['goal'] in followers for e in events), events
+        count = len(events)
 
         # SIGINT while the next long plan runs: clean exit.
         goals.publish(pose_msg(SEALED_GOAL))
         time.sleep(0.5)
-        assert len(plan_events(diagnostics)) == 2, 'the long plan should still be running'
+        assert len(plan_events(diagnostics)) == count, 'the long plan should still be running'
         assert_clean_exit(busy, busy.stop(signal.SIGINT, timeout_s=15.0))
 
         idle.wait_for_output(READY_TEXT, STARTUP_TIMEOUT_S)

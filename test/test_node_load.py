@@ -142,6 +142,9 @@ class Collector:
     def __init__(self, client: RosClient) -> None:
         self._lock = threading.Lock()
         self.plans: List[Received] = []
+        # Receipt times of empty plans: the node withdrew the plan in force (a newer set made
+        # it collide) before its replacement was ready.
+        self.withdrawals: List[float] = []
         self.diagnostics: Dict[int, Dict[str, str]] = {}
         self.discarded = 0
         client.node.create_subscription(Path, f'{NAMESPACE}/plan', self._on_plan, PLAN_QOS)
@@ -150,6 +153,10 @@ class Collector:
 
     def _on_plan(self, msg: Path) -> None:
         now = time.monotonic()
+        if not msg.poses:
+            with self._lock:
+                self.withdrawals.append(now)
+            return
         plan = Received(now, conv.time_to_ns(msg.header.stamp), conv.path_to_points(msg),
                         goal_number(msg.poses[-1].pose.orientation))
         with self._lock:
@@ -168,6 +175,10 @@ class Collector:
     def snapshot(self):
         with self._lock:
             return list(self.plans), dict(self.diagnostics), self.discarded
+
+    def withdrawn(self) -> List[float]:
+        with self._lock:
+            return list(self.withdrawals)
 
 
 class ParameterPoller:
@@ -279,6 +290,7 @@ def test_goals_at_100_hz_and_obstacles_at_20_hz_for_30_s() -> None:
         while poller.answered() < len(poller.sent) and time.monotonic() < deadline:
             time.sleep(0.05)
         plans, diagnostics, discarded = collector.snapshot()
+        withdrawals = collector.withdrawn()
     finally:
         client.close()
         poll_client.close()
@@ -288,13 +300,15 @@ def test_goals_at_100_hz_and_obstacles_at_20_hz_for_30_s() -> None:
             process.kill()
 
     _check(plans, diagnostics, discarded, sets, goal_sent, last_goal, load_start_ns, poller,
-           rss)
+           rss, withdrawals)
 
 
 def _check(plans: List[Received], diagnostics: Dict[int, Dict[str, str]], discarded: int,
            sets: List[PublishedSet], goal_sent: Dict[int, float], last_goal: int,
-           load_start_ns: int, poller: ParameterPoller, rss: Dict[str, float]) -> None:
-    """Checks 1-7 of the module docstring; prints the figures first."""
+           load_start_ns: int, poller: ParameterPoller, rss: Dict[str, float],
+           withdrawals: List[float]) -> None:
+    """Checks 1-7 of the module docstring; prints the figures first. A plan is in force
+    until the next plan or an empty one (a withdrawal) arrives."""
     plans = [plan for plan in plans if plan.stamp_ns >= load_start_ns]
     events = {stamp: values for stamp, values in diagnostics.items() if stamp >= load_start_ns}
     by_stamp = {published.stamp_ns: index for index, published in enumerate(sets)}
@@ -331,6 +345,7 @@ def _check(plans: List[Received], diagnostics: Dict[int, Dict[str, str]], discar
         if index + 1 < len(sets) and sets[index + 1].stamp_ns <= started_ns:
             oldest_unused_s = max(oldest_unused_s, 1e-9 * (started_ns - sets[index + 1].stamp_ns))
         following = plans[number + 1].received if number + 1 < len(plans) else math.inf
+        following = min([following] + [t for t in withdrawals if t > plan.received])
         # The set current at arrival, and every set published while the plan was the newest.
         current = int(np.searchsorted(publication, plan.received, side='right')) - 1
         until = int(np.searchsorted(publication, following, side='left'))
@@ -356,6 +371,7 @@ def _check(plans: List[Received], diagnostics: Dict[int, Dict[str, str]], discar
         'goals coalesced': last_goal - len(first_plan),
         'replans for obstacles': obstacle_replans,
         'plans discarded (collided with a set received while planning)': discarded,
+        'plans withdrawn (empty plan before the replacement)': len(withdrawals),
         'obstacle sets published': len(sets),
         'plans invalid on arrival (newer set)': stale_on_arrival,
         'longest invalid plan in force [s]': round(worst_in_force, 3),

@@ -21,9 +21,9 @@ from std_msgs.msg import Header
 from trajectory_msgs.msg import MultiDOFJointTrajectory
 from visualization_msgs.msg import Marker, MarkerArray
 
-from ros_harness import (assert_clean_exit, diagnostics_of, LATCHED_QOS, marker, marker_array,
-                         min_clearance, NODE_NAME, NodeProcess, OBSTACLES_QOS, odom_msg,
-                         pose_msg, READY_TEXT, RosClient, RUN_NAMESPACE, SENSOR_QOS,
+from ros_harness import (assert_clean_exit, CLOUD_QOS, diagnostics_of, LATCHED_QOS, marker,
+                         marker_array, min_clearance, NODE_NAME, NodeProcess, OBSTACLES_QOS,
+                         odom_msg, pose_msg, READY_TEXT, RosClient, RUN_NAMESPACE, SENSOR_QOS,
                          start_planner, STARTUP_TIMEOUT_S, unique_domain_id, wait_until)
 from uav_global_planner.core.obstacles import Box, ObstacleSet, PointSet, Sphere
 from uav_global_planner.core.scene import find_scene, load_scene
@@ -77,7 +77,9 @@ class PlannerUnderTest:
         self.goal_pub = node.publisher(PoseStamped, prefix + 'goal_pose')
         self.start_pub = node.publisher(PoseStamped, prefix + 'start_pose')
         self.obstacles_pub = node.publisher(MarkerArray, prefix + 'obstacles', OBSTACLES_QOS)
-        self.cloud_pub = node.publisher(PointCloud2, prefix + 'obstacle_cloud', SENSOR_QOS)
+        # Reliable, as the node's cloud subscription: a best-effort publisher does not
+        # connect to it.
+        self.cloud_pub = node.publisher(PointCloud2, prefix + 'obstacle_cloud', CLOUD_QOS)
         self.odom_pub = node.publisher(Odometry, prefix + 'odom', SENSOR_QOS)
         self.params = node.parameters(self.fqn)
 
@@ -400,8 +402,11 @@ def test_new_obstacle_on_the_path_triggers_a_replan(planner):
     mark = planner.diagnostics.mark()
     planner.set_obstacles(marker_array(
         marker('test', 1, Marker.SPHERE, blocker, [1.6, 1.6, 1.6])), len(SCENE.obstacles) + 2)
+    # The plan in force is withdrawn as the map arrives (ERROR), then replaced.
+    withdrawn = planner.wait_diag(mark, 'plan_withdrawn')
+    assert withdrawn['_level'] == 2 and withdrawn['plan_withdrawn'] == 'true', withdrawn
     values = planner.wait_diag(mark, 'plan')
-    assert 'no longer clear' in values['reason'], values
+    assert 'withdrawn' in values['reason'], values
     assert values['status'] == 'ok', values
     obstacles = ObstacleSet(list(scene_obstacles().items) + [Sphere(blocker, 0.8)])
     assert_safe(planner.plan_for(values), obstacles, GAMMA)

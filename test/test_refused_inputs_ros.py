@@ -125,6 +125,7 @@ def _good_then_bad() -> MarkerArray:
 
 
 PLANNING = 'test_node_planning.py::test_malformed_input_is_reported_and_refused'
+LIVE_MAPS = 'test_node_live_maps.py::'
 PLANNING_PARAMS = 'test_node_planning.py::test_invalid_parameter_is_rejected_and_old_value_kept'
 THIS = 'test_refused_inputs_ros.py::'
 
@@ -158,6 +159,14 @@ CATALOGUE = (
     Case('goal_frame_leading_slash', 'goal_pose', "frame_id '/map'", ACCEPTED, 0,
          "ok: '/map' is the frame 'map', as in tf2",
          covered_by=THIS + 'test_leading_slash_names_the_same_frame'),
+    Case('goal_before_map', 'goal_pose', 'a goal before any map source has delivered',
+         PLAN_FAILS, 200, 'no map yet: none of the map sources (obstacles, obstacle_cloud, '
+         'map_file) has delivered',
+         covered_by=LIVE_MAPS + 'test_a_goal_before_any_map_is_refused_with_the_reason'),
+    Case('goal_before_required_map', 'goal_pose',
+         "required_map_sources ['obstacle_cloud'] and no cloud yet", PLAN_FAILS, 200,
+         'no map yet: required_map_sources obstacle_cloud not delivered',
+         covered_by=LIVE_MAPS + 'test_required_sources_are_waited_for'),
     # ---------------------------------------------------------------- start_pose and odom
     Case('start_pose_nan', 'start_pose', 'position x = NaN', REFUSED, 200,
          'start_pose position must be finite', covered_by=PLANNING),
@@ -261,13 +270,13 @@ CATALOGUE = (
          'resolution must be in (0.0, 100.0], got 0.0', send={'resolution': 0.0},
          covered_by=PLANNING_PARAMS),
     Case('param_resolution_voxel_cap', 'parameter', 'resolution = 0.001', PARAMETER_REFUSED,
-         None, 'nodes exceeds max_voxels = 20000000; raise the resolution or shrink the bounds',
+         None, 'nodes exceeds max_voxels = 100000000; raise the resolution or shrink the bounds',
          send={'resolution': 0.001}, covered_by=PLANNING_PARAMS),
     Case('param_max_voxels_small', 'parameter', 'max_voxels = 100', PARAMETER_REFUSED, None,
          'grid of 41 x 41 x 31 = 5.21e+04 nodes exceeds max_voxels = 100',
          send={'max_voxels': 100}, covered_by=PLANNING_PARAMS),
     Case('param_bounds_voxel_cap', 'parameters (atomic)', 'bounds +-10 km at delta 0.5 m',
-         PARAMETER_REFUSED, None, 'nodes exceeds max_voxels = 20000000',
+         PARAMETER_REFUSED, None, 'nodes exceeds max_voxels = 100000000',
          send={'bounds.min': [-1.0e4] * 3, 'bounds.max': [1.0e4] * 3}),
     Case('param_bounds_min_above_max', 'parameter', 'bounds.min = [10, 10, 10]',
          PARAMETER_REFUSED, None, 'bounds.min must be below bounds.max on every axis',
@@ -307,7 +316,7 @@ CATALOGUE = (
          PARAMETER_REFUSED, None, 'max_obstacle_size must be a finite number > 0 m',
          send={'max_obstacle_size': 0.0}),
     Case('param_algorithm_unknown', 'parameter', "algorithm = 'foo'", PARAMETER_REFUSED, None,
-         "algorithm must be one of dijkstra, astar, adaptive, octile, got 'foo'",
+         "algorithm must be one of dijkstra, astar, adaptive, octile, weighted, got 'foo'",
          send={'algorithm': 'foo'}, covered_by=PLANNING_PARAMS),
     Case('param_smoothing_unknown', 'parameter', "smoothing = 'bezier'", PARAMETER_REFUSED,
          None, "smoothing must be one of chord, index, none, got 'bezier'",
@@ -323,6 +332,14 @@ CATALOGUE = (
          send={'cloud_non_finite': 'keep'}, covered_by=PLANNING_PARAMS),
     Case('param_undeclared', 'parameter', 'no_such_parameter = 1.0', PARAMETER_REFUSED, None,
          'undeclared parameter', send={'no_such_parameter': 1.0}),
+    Case('param_cloud_qos_at_run_time', 'parameter', "cloud_qos_reliability = 'best_effort' "
+         'on a running node', PARAMETER_REFUSED, None,
+         'cloud_qos_reliability is read at start-up; restart the node to change it',
+         send={'cloud_qos_reliability': 'best_effort'}),
+    Case('param_required_map_sources_unknown', 'parameter',
+         "required_map_sources = ['lidar']", PARAMETER_REFUSED, None,
+         "required_map_sources must be ['any'] or distinct names among obstacles, "
+         'obstacle_cloud, map_file', send={'required_map_sources': ['lidar']}),
     Case('param_search_budget_tiny', 'parameter', 'max_expansions = 1 (valid, too small)',
          PLAN_FAILS, 207, 'search ran out of its expansion budget (max_expansions = 1)',
          send={'max_expansions': 1}),
@@ -431,6 +448,8 @@ def _publish_until_refused(planner: PlannerClient, case: Case, mark: int) -> Dic
     Best-effort topics (odom, obstacle_cloud) may lose the very first message of a new
     publisher while discovery completes, so those are sent again until the refusal shows.
     """
+    # (obstacle_cloud is reliable, but a new publisher's first sample can still be lost before
+    # both sides have matched.)
     best_effort = case.channel in ('odom', 'obstacle_cloud')
     deadline = time.monotonic() + 10.0
     while True:
@@ -597,16 +616,20 @@ def test_plan_that_a_new_obstacle_invalidates_is_withdrawn(planner: PlannerClien
     mark = planner.diagnostics.mark()
     planner.set_obstacles(marker_array(
         marker('block', 0, Marker.SPHERE, GOAL, (1.0, 1.0, 1.0))), count + 1)
-    failed = planner.wait_diag(mark, 'plan')
-    assert 'no longer clear' in failed['reason'], failed
-    assert failed['status'] == 'goal_occupied' and failed['status_code'] == '206', failed
-    # The plan on the topic now collides: it is replaced by an empty one, for late
-    # subscribers too (a controller started now must not fly it).
+    # The plan on the topic now collides: it is withdrawn as soon as the map arrives (an
+    # ERROR saying where), replaced by an empty one, for late subscribers too (a controller
+    # started now must not fly it); then its replacement is attempted, and fails.
+    notice = planner.wait_diag(mark, 'plan_withdrawn')
+    assert notice['_level'] == 2 and notice['plan_withdrawn'] == 'true', notice
+    where = np.array([float(v) for v in notice['blocked_at'].strip('[]').split(',')])
+    assert np.linalg.norm(where - GOAL) < 0.5 + GAMMA + 0.5, notice
     withdrawn = planner.plans.wait_for(
-        lambda m: conv.time_to_ns(m.header.stamp) == failed['_stamp'], 5.0,
+        lambda m: conv.time_to_ns(m.header.stamp) == notice['_stamp'], 5.0,
         what='the empty plan that withdraws the colliding one')
     assert len(withdrawn.poses) == 0 and withdrawn.header.frame_id == 'map'
-    assert failed['plan_withdrawn'] == 'true', failed
+    failed = planner.wait_diag(mark, 'plan')
+    assert 'withdrawn' in failed['reason'], failed
+    assert failed['status'] == 'goal_occupied' and failed['status_code'] == '206', failed
     late = planner.client.record(type(withdrawn), planner.prefix + 'plan', LATCHED_QOS)
     assert len(late.wait_for(timeout_s=10.0, what='the latched plan').poses) == 0
 

@@ -28,7 +28,8 @@ VALID = {
 
 def test_shipped_scenes_load():
     names = [path.stem for path in shipped_scenes()]
-    assert names == ['dense60_fine', 'dense60_mid', 'paper_high', 'paper_medium']
+    assert names == ['airspace_demo', 'city1km', 'dense60_fine', 'dense60_mid', 'paper_high',
+                     'paper_medium', 'town400', 'wall_gap']
     medium = load_scene(find_scene('paper_medium'))
     assert len(medium.obstacles) == 7
     assert medium.config.resolution == 0.5

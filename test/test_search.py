@@ -18,6 +18,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import shortest_path
 
 from uav_global_planner.core import search as search_module
+from uav_global_planner.core.config import ALGORITHMS
 from uav_global_planner.core.errors import (GoalOccupiedError, InvalidInputError,
                                             NoValidPathError, PlanningTimeoutError,
                                             StartOccupiedError)
@@ -25,11 +26,10 @@ from uav_global_planner.core.grid import VoxelGrid
 from uav_global_planner.core.inflation import blocked_mask
 from uav_global_planner.core.jit import JIT_ENABLED
 from uav_global_planner.core.obstacles import Box, ObstacleSet, PointSet, Sphere
-from uav_global_planner.core.search import (ALGORITHM_CODES, search, SearchResult,
-                                            SearchWorkspace)
+from uav_global_planner.core.search import (ALGORITHM_CODES, DEFAULT_WEIGHT, search,
+                                            SearchResult, SearchWorkspace)
 
 REPO = Path(__file__).resolve().parents[1]
-ALGORITHMS = ('dijkstra', 'astar', 'adaptive', 'octile')
 OPTIMAL = ('dijkstra', 'astar', 'octile')
 N_RANDOM_SCENES = 240
 # Relative tolerance of cost comparisons: sums of a few hundred step costs in float64.
@@ -134,6 +134,26 @@ def test_random_scene_matches_csgraph(seed):
             assert result.cost_m == pytest.approx(optimum, rel=RTOL, abs=1e-12), algorithm
         else:
             assert result.cost_m >= optimum * (1.0 - RTOL)
+        if algorithm == 'weighted':
+            assert result.cost_m <= DEFAULT_WEIGHT * optimum * (1.0 + RTOL) + 1e-12
+
+
+@pytest.mark.parametrize('weight', [1.0, 1.2, 2.0, 5.0])
+@pytest.mark.parametrize('seed', range(0, N_RANDOM_SCENES, 3))
+def test_weighted_search_keeps_its_bound(seed, weight):
+    blocked, resolution, eta, start, goal = random_scene(seed)
+    shape = blocked.shape
+    distance = graph_distances(blocked, resolution,
+                               int(np.ravel_multi_index(tuple(start), shape)))
+    optimum = distance[np.ravel_multi_index(tuple(goal), shape)]
+    if not np.isfinite(optimum):
+        return
+    result = SearchWorkspace(blocked).search(start, goal, 'weighted', resolution, eta,
+                                             weight=weight)
+    check_path(result, blocked, resolution, start, goal)
+    assert optimum * (1.0 - RTOL) <= result.cost_m <= weight * optimum * (1.0 + RTOL) + 1e-12
+    if weight == 1.0:
+        assert result.cost_m == pytest.approx(optimum, rel=RTOL, abs=1e-12)
 
 
 def test_random_scenes_cover_the_interesting_cases():
@@ -240,7 +260,7 @@ def _queries():
     rng = np.random.default_rng(7)
     queries = [(start, goal, a, 0) for a in ALGORITHMS]
     queries.append((start, goal, 'astar', 3))
-    queries += [(free[a], free[b], ALGORITHMS[n % 4], 0)
+    queries += [(free[a], free[b], ALGORITHMS[n % len(ALGORITHMS)], 0)
                 for n, (a, b) in enumerate(rng.integers(len(free), size=(12, 2)))]
     return blocked, resolution, eta, queries
 
@@ -307,7 +327,7 @@ blocked = np.zeros((9, 8, 7), dtype=bool)
 blocked[3:6, 1:8, 0:6] = True
 blocked[6, 0:3, 2] = True
 out = {'jit': JIT_ENABLED}
-for algorithm in ('dijkstra', 'astar', 'adaptive', 'octile'):
+for algorithm in ('dijkstra', 'astar', 'adaptive', 'octile', 'weighted'):
     r = search(blocked, (0, 7, 0), (8, 0, 6), algorithm, 0.3, 0.8)
     out[algorithm] = [r.path_indices.tolist(), r.cost_m, r.expanded_nodes]
 print(json.dumps(out))
@@ -345,13 +365,16 @@ def test_octile_heuristic_is_the_free_space_distance():
         distance = graph_distances(blocked, resolution, int(np.ravel_multi_index(source, shape)))
         for node in np.ndindex(*shape):
             di, dj, dk = (abs(a - b) for a, b in zip(node, source))
-            h = search_module._heuristic(ALGORITHM_CODES['octile'], di, dj, dk, resolution, 0.0)
+            h = search_module._heuristic(ALGORITHM_CODES['octile'], di, dj, dk, resolution, 0.0,
+                                         1.0)
             assert h == pytest.approx(distance[np.ravel_multi_index(node, shape)], rel=1e-12,
                                       abs=1e-12)
 
 
 def test_heuristic_definitions():
-    h = search_module._heuristic
+    def h(code, di, dj, dk, resolution, eta, weight=1.0):
+        return search_module._heuristic(code, di, dj, dk, resolution, eta, weight)
+
     codes = ALGORITHM_CODES
     assert h(codes['dijkstra'], 3, 4, 12, 0.5, 1.0) == 0.0
     assert h(codes['astar'], 3, 4, 12, 0.5, 1.0) == pytest.approx(6.5)
@@ -362,6 +385,9 @@ def test_heuristic_definitions():
     expected = 0.5 * (math.sqrt(3) * 3 + math.sqrt(2) * 1 + 8)
     assert h(codes['octile'], 12, 3, 4, 0.5, 1.0) == pytest.approx(expected)
     assert h(codes['octile'], 3, 4, 12, 0.5, 1.0) == pytest.approx(expected)
+    # The weight scales the octile distance for 'weighted' only.
+    assert h(codes['weighted'], 3, 4, 12, 0.5, 1.0, 1.25) == pytest.approx(1.25 * expected)
+    assert h(codes['octile'], 3, 4, 12, 0.5, 1.0, 1.25) == pytest.approx(expected)
 
 
 def test_invalid_inputs_are_rejected():
@@ -405,4 +431,4 @@ def test_non_contiguous_grid_is_accepted():
 def test_jit_flag_is_a_bool():
     assert isinstance(JIT_ENABLED, bool)
     assert set(ALGORITHM_CODES) == set(ALGORITHMS)
-    assert len(set(ALGORITHM_CODES.values())) == 4
+    assert len(set(ALGORITHM_CODES.values())) == 5

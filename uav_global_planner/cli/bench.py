@@ -4,12 +4,15 @@ Each scene runs in a fresh process, so the peak resident memory reported is that
 (grid, inflation, search workspace, smoothing), as it would be in the planner node. With
 ``--ros``, the ROS-side figures follow: goal-to-plan latency over DDS, node start-up and the
 node's peak memory, measured by :mod:`uav_global_planner.ros.latency_bench` in a child process
-(this module never imports rclpy, so the tool works without ROS). Figures only: nothing here
-asserts a speed.
+(this module never imports rclpy, so the tool works without ROS). With ``--outdoor``, the
+per-stage figures of the outdoor scenes (town400, city1km, wall_gap, the town as a point cloud,
+a 99 M-node search grid) come from ``benchmarks/bench_outdoor.py`` of the source tree instead;
+scene names given then select its cases. Figures only: nothing here asserts a speed.
 """
 
 import argparse
 import json
+from pathlib import Path
 import resource
 import statistics
 import subprocess
@@ -26,6 +29,12 @@ from uav_global_planner.core.scene import find_scene, load_scene, shipped_scenes
 
 # Repeat each measurement until this much time was spent on it [s] (at least 3, at most 50 runs).
 _TIME_PER_FIGURE_S = 2.0
+
+# Shipped scenes measured by --outdoor (per stage, one algorithm or two), not by the table of
+# every algorithm: Dijkstra alone would take minutes on them.
+_OUTDOOR_SCENES = ('town400', 'city1km', 'wall_gap')
+# The outdoor benchmark script, in a source checkout.
+_OUTDOOR_SCRIPT = Path(__file__).resolve().parents[2] / 'benchmarks' / 'bench_outdoor.py'
 
 
 def _median_runs(run, budget_s: float = _TIME_PER_FIGURE_S, most: int = 50) -> List[Any]:
@@ -181,6 +190,24 @@ def measure_ros(options: Sequence[str] = ()) -> Dict[str, Any]:
                            f'{run.stderr.strip()}') from None
 
 
+def run_outdoor(cases: Sequence[str], as_json: bool) -> int:
+    """Run the outdoor benchmark script, its output passed through; its exit code.
+
+    Parameters
+    ----------
+    cases : sequence of str
+        Case names or prefixes (``--only``); all cases when empty.
+    as_json : bool
+        Ask for one JSON document.
+    """
+    if not _OUTDOOR_SCRIPT.is_file():
+        print(f'uav-plan bench: --outdoor needs a source checkout ({_OUTDOOR_SCRIPT} is '
+              'missing)', file=sys.stderr)
+        return 2
+    command = [sys.executable, str(_OUTDOOR_SCRIPT)] + [f'--only={name}' for name in cases]
+    return subprocess.run(command + (['--json'] if as_json else []), check=False).returncode
+
+
 def main(argv: Optional[List[str]] = None) -> int:
     """Entry point of ``uav-plan bench`` (and of the per-scene worker processes)."""
     parser = argparse.ArgumentParser(prog='uav-plan bench', description=__doc__.splitlines()[0])
@@ -191,12 +218,18 @@ def main(argv: Optional[List[str]] = None) -> int:
                              'the paper scenes, start-up time, peak memory on dense60_fine')
     parser.add_argument('--ros-goals', type=int, default=50, metavar='N',
                         help='goals per scene of the ROS latency figures (default 50)')
+    parser.add_argument('--outdoor', action='store_true',
+                        help='per-stage figures of the outdoor scenes instead '
+                             '(benchmarks/bench_outdoor.py; scenes given select its cases)')
     parser.add_argument('--one-scene', help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.one_scene:
         print(json.dumps(measure_scene(args.one_scene)))
         return 0
-    names = args.scenes or [path.stem for path in shipped_scenes()]
+    if args.outdoor:
+        return run_outdoor(args.scenes, args.json)
+    names = args.scenes or [path.stem for path in shipped_scenes()
+                            if path.stem not in _OUTDOOR_SCENES]
     figures = [_measure_in_subprocess(name) for name in names]
     if not args.json:
         print_report(figures)

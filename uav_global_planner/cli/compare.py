@@ -43,12 +43,13 @@ def compare_algorithms(scene: Scene, algorithms: Sequence[str] = ALGORITHMS,
     results: Dict[str, PlanResult] = {}
     times: Dict[str, float] = {}
     for algorithm in algorithms:
-        planner.plan(scene.start, scene.goal, algorithm)  # warm: compile, build the grid
-        runs = [planner.plan(scene.start, scene.goal, algorithm) for _ in range(repeats)]
+        planner.plan(scene.start, scene.goal, algorithm, via=scene.via)  # warm: compile, grid
+        runs = [planner.plan(scene.start, scene.goal, algorithm, via=scene.via)
+                for _ in range(repeats)]
         results[algorithm] = runs[-1]
         times[algorithm] = statistics.median(r.planning_time_s for r in runs)
     optimal = [r.path_length_m for name, r in results.items()
-               if r.ok and name != 'adaptive']
+               if r.ok and name not in ('adaptive', 'weighted')]
     optimum = min(optimal) if optimal else float('nan')
     return [ComparisonRow(name, results[name], times[name], repeats,
                           results[name].path_length_m / optimum)

@@ -7,14 +7,22 @@ start or goal, timeout), 2 for invalid input (scene file, options).
 import argparse
 from dataclasses import replace
 import json
+import math
 import sys
 from typing import List, Optional
 
+import numpy as np
+
 from uav_global_planner.cli.compare import compare_algorithms
+from uav_global_planner.cli.export import add_export_command, run_export
 from uav_global_planner.cli.report import (finite_or_none, format_summary, format_table,
                                            result_to_dict)
+from uav_global_planner.core.airspace import Airspace, load_geofence
+from uav_global_planner.core.budget import PlanStage
 from uav_global_planner.core.config import ALGORITHMS, SMOOTHING_MODES, validate_config
 from uav_global_planner.core.errors import InvalidInputError
+from uav_global_planner.core.mapfiles import load_map_files
+from uav_global_planner.core.obstacles import ObstacleSet
 from uav_global_planner.core.planner import Planner
 from uav_global_planner.core.scene import find_scene, load_scene, Scene
 from uav_global_planner.core.status import PlanStatus
@@ -22,6 +30,9 @@ from uav_global_planner.core.status import PlanStatus
 EXIT_OK = 0
 EXIT_PLAN_FAILED = 1
 EXIT_INVALID_INPUT = 2
+
+# Grids from this many nodes up are announced on stderr before they are built.
+_ANNOUNCE_GRID_NODES = 10_000_000
 
 
 class _UsageError(Exception):
@@ -52,6 +63,14 @@ class _Parser(argparse.ArgumentParser):
         raise _UsageError(self, message)
 
 
+def _triple(text: str) -> List[float]:
+    """``X,Y,Z`` as three floats (an argparse type: ValueError becomes a usage error)."""
+    parts = text.split(',')
+    if len(parts) != 3:
+        raise ValueError(f'expected X,Y,Z, got {text!r}')
+    return [float(part) for part in parts]
+
+
 def _add_scene_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('scene', help='scene YAML file, or the name of a shipped scene '
                         '(paper_medium, paper_high, dense60_mid, dense60_fine)')
@@ -63,6 +82,23 @@ def _add_scene_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--no-shortcut', action='store_true',
                         help='keep every grid node as a spline knot')
     parser.add_argument('--max-planning-time', type=float, help='search budget [s], 0 = none')
+    parser.add_argument('--max-voxels', type=int, metavar='N',
+                        help='largest accepted grid node count (about 20 bytes of memory a node)')
+    parser.add_argument('--map', action='append', default=[], metavar='FILE',
+                        help='add the occupied points of a map file (.pcd, .ply, .las, .laz, .bt, '
+                        '.npy); repeatable')
+    parser.add_argument('--via', action='append', default=[], metavar='X,Y,Z', type=_triple,
+                        help='a via-point [m] passed through exactly, in order; repeatable '
+                        "(replaces the scene's via list)")
+    parser.add_argument('--geofence', metavar='FILE',
+                        help='inclusion fences and no-fly zones from a YAML file or a '
+                        "QGroundControl .plan (placed with the scene's geodetic_origin; .plan "
+                        "fences span the bounds in height); replaces the scene's geofence")
+    parser.add_argument('--search-weight', type=float, metavar='W',
+                        help='suboptimality bound of the weighted algorithm (default 1.05)')
+    parser.add_argument('--map-downsample', type=float, metavar='CELL',
+                        help='keep one point per CELL-metre cell of the --map files; gamma grows '
+                        'by CELL*sqrt(3)/2 so the path keeps gamma from the original points')
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -87,22 +123,64 @@ def _parser() -> argparse.ArgumentParser:
     plot = commands.add_parser('plot', help='draw the raw and the smoothed path in 3D')
     _add_scene_options(plot)
     plot.add_argument('--algorithm', choices=ALGORITHMS, default='adaptive')
-    plot.add_argument('-o', '--output', required=True, metavar='PNG')
+    plot.add_argument('-o', '--output', metavar='PNG',
+                      help='oblique, top and side views of the scene and the paths')
+    plot.add_argument('--html', metavar='FILE',
+                      help='an interactive 3D view (plotly) to rotate in a browser')
+
+    add_export_command(commands, _add_scene_options)
     return parser
 
 
 def _scene_from_args(args: argparse.Namespace) -> Scene:
-    scene = load_scene(find_scene(args.scene))
     changes = {}
     for option, name in (('resolution', 'resolution'), ('safety_margin', 'safety_margin'),
                          ('adaptive_threshold', 'adaptive_threshold'),
                          ('smoothing', 'smoothing'),
-                         ('max_planning_time', 'max_planning_time')):
+                         ('max_planning_time', 'max_planning_time'),
+                         ('max_voxels', 'max_voxels'), ('search_weight', 'search_weight')):
         if getattr(args, option) is not None:
             changes[name] = getattr(args, option)
     if args.no_shortcut:
         changes['shortcut'] = False
-    return replace(scene, config=validate_config(replace(scene.config, **changes)))
+    # The options replace the scene's values before it is validated, so --max-voxels can admit
+    # a grid the scene's own cap refuses.
+    scene = load_scene(find_scene(args.scene), overrides=changes)
+    if args.via:
+        scene = replace(scene, via=np.asarray(args.via, dtype=np.float64).reshape(-1, 3))
+    if args.geofence:
+        scene = _with_geofence(scene, args.geofence)
+    if args.map_downsample is not None and not args.map:
+        raise InvalidInputError('--map-downsample needs at least one --map FILE')
+    if not args.map:
+        return scene
+    try:
+        maps = load_map_files(args.map, args.map_downsample)
+    except InvalidInputError as error:
+        raise type(error)(f'--map: {error}') from None
+    # gamma as asked, plus the largest margin of any map (see core.mapfiles).
+    margin = max(scene.map_margin_m, maps.margin_m)
+    gamma = scene.config.safety_margin - scene.map_margin_m + margin
+    return replace(scene, config=validate_config(replace(scene.config, safety_margin=gamma)),
+                   obstacles=ObstacleSet([*scene.obstacles.items, maps.obstacle()]),
+                   map_margin_m=margin)
+
+
+def _with_geofence(scene: Scene, path: str) -> Scene:
+    """``scene`` with the fences and zones of a geofence file instead of its own."""
+    airspace = load_geofence(path, scene.geodetic_origin, scene.config.bounds_min[2],
+                             scene.config.bounds_max[2])
+    own = {id(shape) for shape in scene.airspace.shapes()}
+    others = [item for item in scene.obstacles.items if id(item) not in own]
+    return replace(scene, obstacles=ObstacleSet(others + list(airspace.shapes())),
+                   airspace=airspace)
+
+
+def _without_geofence(scene: Scene) -> Scene:
+    """``scene`` with its obstacles only: the unconstrained plan, for comparison."""
+    own = {id(shape) for shape in scene.airspace.shapes()}
+    others = [item for item in scene.obstacles.items if id(item) not in own]
+    return replace(scene, obstacles=ObstacleSet(others), airspace=Airspace())
 
 
 def _warm_planner(scene: Scene) -> Planner:
@@ -112,8 +190,21 @@ def _warm_planner(scene: Scene) -> Planner:
     return planner
 
 
+def _progress_to_stderr(stage: PlanStage, elapsed_s: float, budget_s: float) -> None:
+    """Progress of a long plan, on stderr so that ``--json`` output stays one object."""
+    limit = f' of {budget_s:g} s' if budget_s > 0 else ''
+    print(f'planning: {stage.value} after {elapsed_s:.1f} s{limit}', file=sys.stderr,
+          flush=True)
+
+
 def _run_plan(args: argparse.Namespace, scene: Scene) -> int:
-    result = _warm_planner(scene).plan(scene.start, scene.goal, args.algorithm)
+    nodes = int(np.prod(np.floor((np.asarray(scene.config.bounds_max)
+                                  - np.asarray(scene.config.bounds_min))
+                                 / scene.config.resolution) + 1))
+    if nodes >= _ANNOUNCE_GRID_NODES:
+        print(f'planning: grid build of {nodes / 1e6:.0f} M nodes', file=sys.stderr, flush=True)
+    result = _warm_planner(scene).plan(scene.start, scene.goal, args.algorithm, via=scene.via,
+                                       progress=_progress_to_stderr)
     if args.json:
         print(json.dumps(result_to_dict(result)))
     else:
@@ -126,6 +217,15 @@ def _run_compare(args: argparse.Namespace, scene: Scene) -> int:
     if args.repeats < 1:
         raise InvalidInputError(f'--repeats must be >= 1, got {args.repeats}')
     rows = compare_algorithms(scene, repeats=args.repeats)
+    if len(scene.airspace):
+        # The unconstrained optimum beside the fenced plans: what the geofence costs.
+        free = compare_algorithms(_without_geofence(scene), algorithms=('octile',),
+                                  repeats=args.repeats)
+        fenced = [row.result.path_length_m / row.relative_cost for row in rows
+                  if row.result.ok and math.isfinite(row.relative_cost)]
+        optimum = fenced[0] if fenced else math.nan
+        rows += [replace(row, algorithm='octile, no geofence',
+                         relative_cost=row.result.path_length_m / optimum) for row in free]
     if args.json:
         print(json.dumps({
             'scene': scene.name,
@@ -135,7 +235,10 @@ def _run_compare(args: argparse.Namespace, scene: Scene) -> int:
                       'expanded_nodes': row.result.expanded_nodes,
                       'relative_cost': finite_or_none(row.relative_cost),
                       'smoothed_length_m': finite_or_none(row.result.smoothed_length_m),
-                      'min_clearance_m': finite_or_none(row.result.min_clearance_m)}
+                      'min_clearance_m': finite_or_none(row.result.min_clearance_m),
+                      'flight_time_s': finite_or_none(row.result.duration_s),
+                      'energy_wh': finite_or_none(row.result.energy.energy_wh
+                                                  if row.result.energy else math.nan)}
                      for row in rows]}))
     else:
         grid = f'{scene.config.resolution} m grid'
@@ -144,11 +247,13 @@ def _run_compare(args: argparse.Namespace, scene: Scene) -> int:
               f'median of {args.repeats} runs')
         print(format_table(
             ['algorithm', 'time [ms]', 'length [m]', 'expanded', 'vs optimum',
-             'smoothed [m]', 'clearance [m]', 'status'],
+             'smoothed [m]', 'clearance [m]', 'flight [s]', 'energy [Wh]', 'status'],
             [[row.algorithm, f'{row.median_time_s * 1e3:.3f}',
               f'{row.result.path_length_m:.3f}', str(row.result.expanded_nodes),
               f'{(row.relative_cost - 1) * 100:+.2f} %', f'{row.result.smoothed_length_m:.3f}',
-              f'{row.result.min_clearance_m:.3f}', row.result.status.value]
+              f'{row.result.min_clearance_m:.3f}', f'{row.result.duration_s:.1f}',
+              f'{row.result.energy.energy_wh if row.result.energy else math.nan:.2f}',
+              row.result.status.value]
              for row in rows]))
     if args.plot:
         from uav_global_planner.cli.plotting import plot_scene_paths
@@ -161,15 +266,22 @@ def _run_compare(args: argparse.Namespace, scene: Scene) -> int:
 
 
 def _run_plot(args: argparse.Namespace, scene: Scene) -> int:
-    from uav_global_planner.cli.plotting import plot_scene_paths
-    result = _warm_planner(scene).plan(scene.start, scene.goal, args.algorithm)
+    from uav_global_planner.cli.plotting import plot_scene_html, plot_scene_paths
+    if not args.output and not args.html:
+        raise InvalidInputError('plot needs -o PNG, --html FILE or both')
+    result = _warm_planner(scene).plan(scene.start, scene.goal, args.algorithm, via=scene.via)
     print(format_summary(result))
     if not result.ok:
         return EXIT_PLAN_FAILED
-    plot_scene_paths(scene, {f'{args.algorithm} raw': result.path,
-                             f'{args.algorithm} smoothed': result.smoothed_path},
-                     args.output, title=f'{scene.name}: {args.algorithm}')
-    print(f'plot written to {args.output}')
+    paths = {f'{args.algorithm} raw': result.path,
+             f'{args.algorithm} smoothed': result.smoothed_path}
+    title = f'{scene.name}: {args.algorithm}'
+    if args.output:
+        plot_scene_paths(scene, paths, args.output, title=title)
+        print(f'plot written to {args.output}')
+    if args.html:
+        plot_scene_html(scene, paths, args.html, title=title)
+        print(f'interactive view written to {args.html}')
     return EXIT_OK
 
 
@@ -192,7 +304,8 @@ def main(argv: Optional[List[str]] = None) -> int:
         return EXIT_INVALID_INPUT
     try:
         scene = _scene_from_args(args)
-        runner = {'plan': _run_plan, 'compare': _run_compare, 'plot': _run_plot}[args.command]
+        runner = {'plan': _run_plan, 'compare': _run_compare, 'plot': _run_plot,
+                  'export': run_export}[args.command]
         return runner(args, scene)
     except InvalidInputError as error:
         if getattr(args, 'json', False) and args.command == 'plan':

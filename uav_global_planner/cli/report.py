@@ -20,6 +20,7 @@ def _points(array: np.ndarray) -> List[List[float]]:
 
 def result_to_dict(result: PlanResult) -> Dict[str, Any]:
     """Every field of a plan result as plain JSON types, lengths in m and times in s."""
+    energy = result.energy
     return {
         'status': result.status.value,
         'message': result.message,
@@ -46,6 +47,18 @@ def result_to_dict(result: PlanResult) -> Dict[str, Any]:
             for s in result.repaired_stretches],
         'duration_s': finite_or_none(result.duration_s),
         'smoothing_time_s': finite_or_none(result.smoothing_time_s),
+        'total_time_s': finite_or_none(result.total_time_s),
+        'via': _points(result.via),
+        'legs': [{'leg': leg.index, 'path_length_m': finite_or_none(leg.path_length_m),
+                  'smoothed_length_m': finite_or_none(leg.smoothed_length_m),
+                  'duration_s': finite_or_none(leg.duration_s),
+                  'expanded_nodes': int(leg.expanded_nodes)} for leg in result.legs],
+        'failed_leg': int(result.failed_leg),
+        'cost': finite_or_none(result.cost),
+        'flight_time_s': finite_or_none(energy.flight_time_s if energy else math.nan),
+        'energy_wh': finite_or_none(energy.energy_wh if energy else math.nan),
+        'climb_energy_wh': finite_or_none(energy.climb_energy_j / 3600.0 if energy
+                                          else math.nan),
     }
 
 

@@ -8,10 +8,13 @@ from uav_global_planner.core.errors import InvalidInputError
 from uav_global_planner.core.grid import DEFAULT_MAX_VOXELS, VoxelGrid
 
 #: Search heuristics, by the names users type.
-ALGORITHMS = ('dijkstra', 'astar', 'adaptive', 'octile')
+ALGORITHMS = ('dijkstra', 'astar', 'adaptive', 'octile', 'weighted')
 
 #: Spline parameterisations: chord length sampled in metres, or the paper's node index.
 SMOOTHING_MODES = ('chord', 'index', 'none')
+
+#: Largest climb or descent weight of the energy-aware cost [-]: larger is a typo, not a model.
+MAX_COST_WEIGHT = 100.0
 
 
 @dataclass(frozen=True)
@@ -30,10 +33,13 @@ class PlannerConfig:
         eta [m]: the adaptive heuristic is Manhattan beyond it, Euclidean within it (eq. 12).
     algorithm : str
         One of :data:`ALGORITHMS`.
+    search_weight : float
+        Suboptimality bound w of ``weighted`` [-], in [1, 10]: its path costs at most w times
+        the optimum.
     max_expansions : int
         Search budget in expanded nodes; 0 means no limit.
     max_planning_time : float
-        Search budget [s]; 0 means no limit.
+        Budget of a whole plan [s] (grid build, search, smoothing, timing); 0 means no limit.
     max_voxels : int
         Largest accepted grid node count.
     shortcut : bool
@@ -48,6 +54,14 @@ class PlannerConfig:
         Speed limits [m/s].
     max_accel_horizontal, max_accel_vertical : float
         Acceleration limits [m/s^2].
+    vehicle_mass, hover_power : float
+        Take-off mass [kg] and hover power [W] of the energy estimate of every plan
+        (:mod:`uav_global_planner.core.energy`).
+    climb_weight, descent_weight : float
+        Energy-aware step cost [-], each in [0, 100]: a grid step costs its length plus
+        (weight - 1) times its vertical length, with the weight of its direction; 1 and 1 give
+        the paper's geometric length (eq. 15), a descent weight below 1 makes descending
+        cheaper (:mod:`uav_global_planner.core.search`).
     """
 
     bounds_min: tuple = (-10.0, -10.0, 0.0)
@@ -56,6 +70,7 @@ class PlannerConfig:
     safety_margin: float = 0.2
     adaptive_threshold: float = 1.5
     algorithm: str = 'adaptive'
+    search_weight: float = 1.05
     max_expansions: int = 0
     max_planning_time: float = 5.0
     max_voxels: int = DEFAULT_MAX_VOXELS
@@ -67,6 +82,10 @@ class PlannerConfig:
     max_speed_vertical: float = 1.0
     max_accel_horizontal: float = 1.0
     max_accel_vertical: float = 0.5
+    climb_weight: float = 1.0
+    descent_weight: float = 1.0
+    vehicle_mass: float = 1.5
+    hover_power: float = 180.0
 
     def with_changes(self, **changes: Any) -> 'PlannerConfig':
         """Return a validated copy with some fields replaced."""
@@ -122,12 +141,19 @@ def validate_config(config: PlannerConfig) -> PlannerConfig:
         'resolution': _number('resolution', config.resolution, 0.0, 100.0, low_open=True),
         'safety_margin': _number('safety_margin', config.safety_margin, 0.0, 100.0),
         'adaptive_threshold': _number('adaptive_threshold', config.adaptive_threshold, 0.0),
+        'search_weight': _number('search_weight', config.search_weight, 1.0, 10.0),
         'max_expansions': _integer('max_expansions', config.max_expansions, 0),
         'max_planning_time': _number('max_planning_time', config.max_planning_time, 0.0),
         'max_voxels': _integer('max_voxels', config.max_voxels, 1),
         'sample_spacing': _number('sample_spacing', config.sample_spacing, 0.0, 10.0,
                                   low_open=True),
         'index_step': _number('index_step', config.index_step, 0.0, 1.0, low_open=True),
+        'vehicle_mass': _number('vehicle_mass', config.vehicle_mass, 0.0, 1000.0,
+                                low_open=True),
+        'hover_power': _number('hover_power', config.hover_power, 0.0, 1e6, low_open=True),
+        'climb_weight': _number('climb_weight', config.climb_weight, 0.0, MAX_COST_WEIGHT),
+        'descent_weight': _number('descent_weight', config.descent_weight, 0.0,
+                                  MAX_COST_WEIGHT),
     }
     for name in ('max_speed_horizontal', 'max_speed_vertical', 'max_accel_horizontal',
                  'max_accel_vertical'):

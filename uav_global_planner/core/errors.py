@@ -33,6 +33,13 @@ class InvalidInputError(PlanningError, ValueError):
     status = PlanStatus.INVALID_INPUT
 
 
+class MissingDependencyError(InvalidInputError):
+    """An optional extra (for example a map file format's library) is not installed; the
+    message names the pip package."""
+
+    status = PlanStatus.INVALID_INPUT
+
+
 class StartOutsideMapError(PlanningError):
     """The start lies outside the planning bounds."""
 
@@ -64,6 +71,12 @@ class NoValidPathError(PlanningError):
 
 
 class PlanningTimeoutError(PlanningError):
-    """The search ran out of its expansion or time budget before reaching the goal."""
+    """A stage of the plan (grid build, search, smoothing, timing) ran out of its budget."""
 
     status = PlanStatus.TIMEOUT
+
+
+class PlanningCancelledError(PlanningError):
+    """The request was cancelled (a newer request, changed settings, shutdown)."""
+
+    status = PlanStatus.CANCELED

@@ -1,7 +1,9 @@
 """Obstacle shapes and the exact Euclidean distance to them (paper eq. 9).
 
 Three shapes: spheres (centre, radius), axis-aligned boxes (min and max corners) and point sets
-(occupied points, for example a point cloud or an octomap's occupied-cell centres). Distances are
+(occupied points, for example a point cloud or an octomap's occupied-cell centres). Airspace
+zones and fences (:mod:`uav_global_planner.core.airspace`: prisms, cylinders, the outside of an
+inclusion fence) join the same shape table, so every distance query covers them. Distances are
 to the obstacle's surface, 0 inside it, in metres. The same distance functions drive the grid
 inflation (:mod:`uav_global_planner.core.inflation`) and the clearance check of smoothed paths, so
 the two can never disagree.
@@ -9,7 +11,8 @@ the two can never disagree.
 
 from dataclasses import dataclass
 import math
-from typing import Iterable, Sequence, Union
+import threading
+from typing import Dict, Iterable, Sequence, Union
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -17,6 +20,13 @@ from scipy.spatial import cKDTree
 from uav_global_planner.core.errors import InvalidInputError
 from uav_global_planner.core.grid import as_point
 from uav_global_planner.core.jit import njit
+from uav_global_planner.core.spatial_index import (BOX, BRUTE_FORCE_SHAPES, min_gap_all,
+                                                   ShapeIndex, SPHERE, TableShape)
+
+# Smallest reach of a shape lattice [m]: caps below it share one lattice.
+_SMALLEST_REACH = 0.25
+# Lattices kept per obstacle set (one per power-of-two reach in use).
+_MAX_INDEXES = 4
 
 
 @dataclass(frozen=True, eq=False)
@@ -93,7 +103,7 @@ class PointSet:
         object.__setattr__(self, 'points', pts)
 
 
-Obstacle = Union[Sphere, Box, PointSet]
+Obstacle = Union[Sphere, Box, PointSet, TableShape]
 
 
 def _finite_float(value, name: str) -> float:
@@ -162,30 +172,62 @@ def box_distance(points: np.ndarray, mins: np.ndarray, maxs: np.ndarray) -> np.n
 class ObstacleSet:
     """Immutable collection of obstacles with vectorised distance queries.
 
+    Spheres, boxes and table shapes (airspace zones and fences) form one shape table
+    (:mod:`uav_global_planner.core.spatial_index`), point sets one KD-tree. A query with a
+    ``cap`` looks only at what lies within ``cap`` of each query point (fences, which are
+    unbounded, are evaluated exactly for every query), so its cost follows the obstacles near
+    the query, not their number.
+
     Parameters
     ----------
-    obstacles : iterable of Sphere, Box or PointSet
+    obstacles : iterable of Sphere, Box, PointSet or TableShape
+        Table shapes (:class:`~uav_global_planner.core.spatial_index.TableShape`, for example
+        the zones of :mod:`uav_global_planner.core.airspace`) keep their order in
+        :attr:`zones`; their rows follow the spheres' and boxes' (:attr:`zone_rows`).
     """
 
     def __init__(self, obstacles: Iterable[Obstacle] = ()) -> None:
         items = tuple(obstacles)
         for number, item in enumerate(items):
-            if not isinstance(item, (Sphere, Box, PointSet)):
+            if not isinstance(item, (Sphere, Box, PointSet, TableShape)):
                 raise InvalidInputError(
                     f'obstacle {number} has unsupported type {type(item).__name__}')
         self._items = items
         spheres = [o for o in items if isinstance(o, Sphere)]
         boxes = [o for o in items if isinstance(o, Box)]
         clouds = [o.points for o in items if isinstance(o, PointSet)]
+        zones = [o for o in items if isinstance(o, TableShape)]
         self.sphere_centers = np.array([s.center for s in spheres]).reshape(-1, 3)
         self.sphere_radii = np.array([s.radius for s in spheres], dtype=np.float64)
         self.box_mins = np.array([b.min for b in boxes]).reshape(-1, 3)
         self.box_maxs = np.array([b.max for b in boxes]).reshape(-1, 3)
         self.points = (np.concatenate(clouds) if clouds else np.empty((0, 3)))
         self._tree = cKDTree(self.points) if len(self.points) else None
+        sphere_rows = np.zeros((len(spheres), 6))
+        sphere_rows[:, :3] = self.sphere_centers
+        sphere_rows[:, 3] = self.sphere_radii
+        zone_rows = [zone.table_row() for zone in zones]
+        self.zones = tuple(zones)
+        self.zone_rows = np.arange(len(spheres) + len(boxes),
+                                   len(spheres) + len(boxes) + len(zones), dtype=np.int64)
+        self.shape_kind = np.r_[np.full(len(spheres), SPHERE, dtype=np.int64),
+                                np.full(len(boxes), BOX, dtype=np.int64),
+                                np.array([row[0] for row in zone_rows], dtype=np.int64)]
+        self.shape_params = np.ascontiguousarray(
+            np.vstack([sphere_rows, np.hstack([self.box_mins, self.box_maxs]),
+                       np.array([row[1] for row in zone_rows]).reshape(-1, 6)]))
+        # Polygon vertices of the zone rows, flat; row s owns vertices[vstart[s]:vstart[s + 1]].
+        counts = np.zeros(len(self.shape_kind), dtype=np.int64)
+        counts[self.zone_rows] = [len(row[2]) for row in zone_rows]
+        self.shape_vstart = np.r_[0, np.cumsum(counts)].astype(np.int64)
+        self.shape_vertices = np.ascontiguousarray(
+            np.vstack([np.empty((0, 2))] + [row[2] for row in zone_rows]), dtype=np.float64)
         for array in (self.sphere_centers, self.sphere_radii, self.box_mins, self.box_maxs,
-                      self.points):
+                      self.points, self.shape_kind, self.shape_params, self.zone_rows,
+                      self.shape_vstart, self.shape_vertices):
             array.setflags(write=False)
+        self._indexes: Dict[float, ShapeIndex] = {}
+        self._index_lock = threading.Lock()
 
     @property
     def items(self) -> Sequence[Obstacle]:
@@ -197,26 +239,55 @@ class ObstacleSet:
 
     def is_empty(self) -> bool:
         """True when there is nothing to avoid."""
-        return not (len(self.sphere_radii) or len(self.box_mins) or len(self.points))
+        return not (len(self.shape_kind) or len(self.points))
 
-    def distance(self, points) -> np.ndarray:
+    def distance(self, points, cap: float = math.inf) -> np.ndarray:
         """Euclidean distance from each point to the nearest obstacle [m] (eq. 9).
 
         Parameters
         ----------
         points : array_like, shape (3,) or (M, 3)
             Query positions [m].
+        cap : float
+            Distances at or above this are reported as ``cap`` [m], > 0; +inf (the default)
+            gives every distance exactly. A capped distance is a lower bound of the true one
+            everywhere and equal to it below ``cap``, which is all a clearance certificate
+            needs, at a cost that follows the obstacles within ``cap`` of the query only.
 
         Returns
         -------
         numpy.ndarray, shape () or (M,)
             Distance to the nearest obstacle surface, 0 inside an obstacle, +inf when the set is
-            empty.
+            empty and no cap is given.
         """
         p = np.asarray(points, dtype=np.float64)
-        out = np.minimum(sphere_distance(p, self.sphere_centers, self.sphere_radii),
-                         box_distance(p, self.box_mins, self.box_maxs))
+        flat = np.ascontiguousarray(p.reshape(-1, 3))
+        capped = math.isfinite(cap)
+        if capped and not cap > 0.0:
+            raise InvalidInputError(f'distance cap must be > 0 m, got {cap}')
+        if capped and len(self.shape_kind) > BRUTE_FORCE_SHAPES:
+            out = self._index(cap).query(flat, cap)
+        else:
+            out = min_gap_all(flat, self.shape_kind, self.shape_params, self.shape_vertices,
+                              self.shape_vstart)
         if self._tree is not None:
-            nearest, _ = self._tree.query(p.reshape(-1, 3))
-            out = np.minimum(out, nearest.reshape(p.shape[:-1]))
-        return out
+            nearest, _ = self._tree.query(flat, distance_upper_bound=cap)
+            np.minimum(out, nearest, out=out)
+        if capped:
+            np.minimum(out, cap, out=out)
+        return out.reshape(p.shape[:-1])
+
+    def _index(self, cap: float) -> ShapeIndex:
+        """The shape lattice for caps up to the next power of two of ``cap`` (built once)."""
+        reach = 2.0 ** math.ceil(math.log2(max(cap, _SMALLEST_REACH)))
+        index = self._indexes.get(reach)
+        if index is None:
+            with self._index_lock:
+                index = self._indexes.get(reach)
+                if index is None:
+                    index = ShapeIndex(self.shape_kind, self.shape_params, reach,
+                                       self.shape_vertices, self.shape_vstart)
+                    if len(self._indexes) >= _MAX_INDEXES:
+                        self._indexes.pop(next(iter(self._indexes)))
+                    self._indexes[reach] = index
+        return index

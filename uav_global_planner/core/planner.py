@@ -8,13 +8,18 @@ what happened, so the ROS node and the command-line tool report failures the sam
 Not thread-safe: call it from one thread at a time.
 """
 
+from dataclasses import dataclass, replace
 import math
 import time
-from typing import Optional
+from typing import Callable, List, Optional, Sequence, Tuple
 
 import numpy as np
 
+from uav_global_planner.core.airspace import check_endpoint
+from uav_global_planner.core.budget import PlanBudget, PlanStage, ProgressCallback
+from uav_global_planner.core.clearance import certify_pieces, certify_polyline, Pieces
 from uav_global_planner.core.config import ALGORITHMS, PlannerConfig, validate_config
+from uav_global_planner.core.energy import estimate_energy, VehicleModel
 from uav_global_planner.core.errors import (GoalOccupiedError, GoalOutsideMapError,
                                             InvalidInputError, NoValidPathError,
                                             PlanningError, StartOccupiedError,
@@ -22,7 +27,7 @@ from uav_global_planner.core.errors import (GoalOccupiedError, GoalOutsideMapErr
 from uav_global_planner.core.grid import as_point, VoxelGrid
 from uav_global_planner.core.inflation import blocked_mask
 from uav_global_planner.core.obstacles import ObstacleSet
-from uav_global_planner.core.result import PlanResult, polyline_length
+from uav_global_planner.core.result import LegResult, PlanResult, polyline_length, Trajectory
 from uav_global_planner.core.search import SearchWorkspace
 from uav_global_planner.core.smoothing import smooth_path
 from uav_global_planner.core.status import PlanStatus
@@ -40,15 +45,46 @@ _ENDPOINT_TOLERANCE = 1e-5
 _SNAP_TOLERANCE = 1e-9
 
 
+@dataclass(frozen=True, eq=False)
+class ClearanceVerdict:
+    """Outcome of :meth:`Planner.plan_is_clear`.
+
+    Attributes
+    ----------
+    clear : bool
+        True when the checked curve is certified to keep gamma.
+    blocked_at : numpy.ndarray of shape (3,), or None
+        Where the closest approach of a failing stretch was sampled [m]; None when clear.
+    blocked_ahead_m : float
+        Arc length from the vehicle (or the start) to the beginning of the failing stretch
+        [m]; NaN when clear.
+    """
+
+    clear: bool
+    blocked_at: Optional[np.ndarray]
+    blocked_ahead_m: float = math.nan
+
+
 class _InflatedGrid:
     """A grid and its blocked mask for one safety margin."""
 
-    def __init__(self, grid: VoxelGrid, obstacles: ObstacleSet, margin: float) -> None:
+    def __init__(self, grid: VoxelGrid, obstacles: ObstacleSet, margin: float,
+                 blocked: Optional[np.ndarray] = None) -> None:
         started = time.perf_counter()
         self.grid = grid
         self.margin = margin
-        self.blocked = blocked_mask(grid, obstacles, margin)
+        # A mask built elsewhere (a live map, off the planning thread) costs the plan nothing.
+        self.blocked = blocked_mask(grid, obstacles, margin) if blocked is None else blocked
         self.build_time_s = time.perf_counter() - started
+        # Reported by the first plan that uses this grid, whether that plan or warm_up() built it.
+        self.reported = blocked is not None
+
+    def unreported_build_time(self) -> float:
+        """The build time [s] the first time it is asked for, 0 after that."""
+        if self.reported:
+            return 0.0
+        self.reported = True
+        return self.build_time_s
 
 
 class Planner:
@@ -80,6 +116,8 @@ class Planner:
         # One search workspace (per-node arrays) serves both grids: on large grids a second one
         # would double the memory.
         self._workspace: Optional[SearchWorkspace] = None
+        #: How many times a plan inflated the conservative fallback grid itself.
+        self.fallback_builds = 0
 
     @property
     def config(self) -> PlannerConfig:
@@ -123,32 +161,96 @@ class Planner:
         self._obstacles = obstacles
         self._invalidate()
 
+    def set_map(self, obstacles: ObstacleSet, blocked: Optional[np.ndarray],
+                grid_key: Optional[tuple] = None,
+                fallback: Optional[np.ndarray] = None) -> bool:
+        """Replace the obstacles together with their inflated mask, built elsewhere.
+
+        Parameters
+        ----------
+        obstacles : ObstacleSet
+        blocked : numpy.ndarray of bool, optional
+            Occupancy of every node for ``obstacles`` and ``grid_key`` (see
+            :func:`~uav_global_planner.core.inflation.blocked_mask`); the planner reads it and
+            never writes it, and the caller must not change it while the planner may use it.
+        grid_key : tuple, optional
+            :meth:`PlannerConfig.grid_key` the mask was built for.
+        fallback : numpy.ndarray of bool, optional
+            The mask of the same obstacles for :func:`fallback_margin` (the conservative grid
+            of a plan whose smoothing fails); built by the plan when it needs it if None.
+
+        Returns
+        -------
+        bool
+            True when the mask is used; False when it does not fit the settings in force (or
+            is None), and the grid is then inflated at the next plan, as after
+            :meth:`set_obstacles`.
+        """
+        self.set_obstacles(obstacles)
+        if blocked is None or grid_key != self._config.grid_key():
+            return False
+        grid = self._make_grid()
+        if tuple(blocked.shape) != tuple(grid.shape) or blocked.dtype != np.bool_:
+            return False
+        self._inflated = _InflatedGrid(grid, obstacles, self._config.safety_margin, blocked)
+        if (fallback is not None and tuple(fallback.shape) == tuple(grid.shape)
+                and fallback.dtype == np.bool_):
+            self._fallback = _InflatedGrid(grid, obstacles, fallback_margin(self._config),
+                                           fallback)
+        return True
+
     def warm_up(self) -> None:
         """Compile the search kernels and build the grid, so the first real plan is fast."""
         inflated = self._primary()
-        free = np.flatnonzero(~inflated.blocked.reshape(-1))
-        if len(free) == 0:
+        flat = inflated.blocked.reshape(-1)
+        first = int(np.argmin(flat))  # the first free node, without a copy of the grid
+        if flat[first]:
             return
-        node = inflated.grid.unravel(free[0])
+        node = inflated.grid.unravel(first)
         for algorithm in ALGORITHMS:
             self._search(inflated, node, node, algorithm)
 
-    def path_is_clear(self, positions) -> bool:
-        """True when the polyline through ``positions`` keeps clearance >= gamma everywhere.
+    def path_is_clear(self, positions, obstacles: Optional[ObstacleSet] = None) -> bool:
+        """True when the polyline through ``positions`` is certified to keep gamma everywhere.
 
         Parameters
         ----------
         positions : array_like, shape (M, 3)
-            Polyline vertices [m], checked on a sampling no coarser than delta / 20.
+            Polyline vertices [m].
+        obstacles : ObstacleSet, optional
+            Checked against these instead of the planner's.
         """
-        points = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
-        if len(points) == 0 or self._obstacles.is_empty():
-            return True
-        dense = densify(points, self._config.resolution / 20.0)
-        return bool(np.min(self._obstacles.distance(dense)) >= self._config.safety_margin)
+        obstacles = self._obstacles if obstacles is None else obstacles
+        return certify_polyline(obstacles, positions, self._config.safety_margin,
+                                self._config.resolution).clear
 
-    def plan(self, start, goal, algorithm: Optional[str] = None) -> PlanResult:
-        """Plan from ``start`` to ``goal``.
+    def plan_is_clear(self, result: PlanResult, position=None,
+                      obstacles: Optional[ObstacleSet] = None) -> 'ClearanceVerdict':
+        """Certify that the curve of a plan still keeps gamma, from ``position`` on.
+
+        Parameters
+        ----------
+        result : PlanResult
+            A successful plan (with its ``curve``).
+        position : array_like, shape (3,), optional
+            Where the vehicle is [m]: only the curve beyond the nearest of its samples is
+            checked (the stretch already flown no longer matters). The whole curve when None.
+        obstacles : ObstacleSet, optional
+            Checked against these instead of the planner's (for example a map that arrived
+            while the plan was computed).
+
+        Returns
+        -------
+        ClearanceVerdict
+        """
+        obstacles = self._obstacles if obstacles is None else obstacles
+        return certify_plan(result, obstacles, self._config.safety_margin,
+                            self._config.resolution, position)
+
+    def plan(self, start, goal, algorithm: Optional[str] = None, *, via=(),
+             cancel: Optional[Callable[[], bool]] = None,
+             progress: Optional[ProgressCallback] = None) -> PlanResult:
+        """Plan from ``start`` to ``goal``, through ``via`` in order.
 
         Parameters
         ----------
@@ -157,51 +259,73 @@ class Planner:
             smoothed curve begins and ends exactly at the given points.
         algorithm : str, optional
             Heuristic name; defaults to ``config.algorithm``.
+        via : sequence of array_like of shape (3,)
+            Via-points [m]: the curve passes through each exactly, in order, without stopping
+            unless the geometry demands it; one search per leg.
+        cancel : callable, optional
+            Polled every few milliseconds; True stops the plan with status ``canceled``.
+        progress : callable, optional
+            ``progress(stage, elapsed_s, budget_s)``, called once the plan has run 1 s, at each
+            stage change and every second (see :mod:`uav_global_planner.core.budget`).
 
         Returns
         -------
         PlanResult
-            ``status`` is ``ok`` or names the failure; ``message`` explains it.
+            ``status`` is ``ok`` or names the failure; ``message`` explains it. The whole
+            request (grid build, searches, smoothing, timing) is bounded by
+            ``config.max_planning_time``; running out gives ``timeout`` naming the stage.
         """
         config = self._config
+        budget = PlanBudget(config.max_planning_time, cancel, progress)
         name = config.algorithm if algorithm is None else algorithm
         start_point = _point_or_nan(start)
         goal_point = _point_or_nan(goal)
         base = dict(algorithm=str(name), start=start_point, goal=goal_point,
                     resolution=config.resolution, safety_margin=config.safety_margin,
                     adaptive_threshold=config.adaptive_threshold)
+        legs: List[LegResult] = []
         try:
-            return self._plan(start, goal, name, base)
+            return self._plan(start, goal, via, name, base, budget, legs)
         except PlanningError as error:
             return PlanResult(status=error.status, message=str(error), **base,
-                              expanded_nodes=error.expanded_nodes)
+                              expanded_nodes=error.expanded_nodes
+                              + sum(leg.expanded_nodes for leg in legs),
+                              legs=tuple(legs), failed_leg=getattr(error, 'leg', -1),
+                              total_time_s=budget.elapsed_s)
 
-    def _plan(self, start, goal, name: str, base: dict) -> PlanResult:
+    def _plan(self, start, goal, via, name: str, base: dict, budget: PlanBudget,
+              legs: List[LegResult]) -> PlanResult:
         config = self._config
         if name not in ALGORITHMS:
             raise InvalidInputError(
                 f'algorithm must be one of {", ".join(ALGORITHMS)}, got {name!r}')
         start_point = as_point(start, 'start')
         goal_point = as_point(goal, 'goal')
-        build_time = 0.0 if self._inflated is not None else math.nan
+        via_points = _via_points(via)
+        budget.enter(PlanStage.GRID)
         inflated = self._primary()
-        if math.isnan(build_time):
-            build_time = inflated.build_time_s
-        grid = inflated.grid
-        start_node, goal_node = self._check_endpoints(inflated, start_point, goal_point)
+        build_time = inflated.unreported_build_time()
+        budget.check()
+        stops = np.vstack([start_point[None, :], via_points, goal_point[None, :]])
+        nodes = self._check_stops(inflated, stops)
 
-        found = self._search(inflated, start_node, goal_node, name)
-        path = grid.index_to_world(found.path_indices)
+        budget.enter(PlanStage.SEARCH)
+        search_started = time.perf_counter()
+        paths, expanded = self._search_legs(inflated, nodes, name, budget, legs)
+        search_time = time.perf_counter() - search_started
+        budget.enter(PlanStage.SMOOTHING)
         smoothing_started = time.perf_counter()
-        waypoints = _with_exact_endpoints(path, start_point, goal_point)
+        waypoints, keep = _waypoints(paths, stops)
         try:
-            smoothed = self._smooth(waypoints)
+            smoothed = self._smooth(waypoints, keep, budget)
         except NoValidPathError as first_error:
             # The grid path hugs the inflated obstacles so closely that no curve through it keeps
             # gamma: plan once more on the conservative grid, whose polyline provably does.
+            budget.enter(PlanStage.GRID)
             fallback = self._conservative()
+            budget.check()
             try:
-                start_node, goal_node = self._check_endpoints(fallback, start_point, goal_point)
+                nodes = self._check_stops(fallback, stops)
             except (StartOccupiedError, GoalOccupiedError) as error:
                 # The endpoint keeps gamma (checked on the primary grid): only the wider margin
                 # of the fallback grid blocks it, so the request is not "occupied".
@@ -209,38 +333,86 @@ class Planner:
                 raise NoValidPathError(
                     f'{first_error}; and the grid inflated for edge clearance (gamma + '
                     f'delta*sqrt(3)/2 = {fallback.margin:.4f} m) blocks the {which} node',
-                    expanded_nodes=found.expanded_nodes) from None
+                    expanded_nodes=expanded) from None
+            budget.enter(PlanStage.SEARCH)
+            legs.clear()
             try:
-                found = self._search(fallback, start_node, goal_node, name)
+                paths, expanded = self._search_legs(fallback, nodes, name, budget, legs)
             except NoValidPathError:
                 raise NoValidPathError(f'{first_error}; and no path exists on the grid '
                                        'inflated for edge clearance',
-                                       expanded_nodes=found.expanded_nodes) from None
-            path = grid.index_to_world(found.path_indices)
-            waypoints = _with_exact_endpoints(path, start_point, goal_point)
-            smoothed = self._smooth(waypoints)
-            build_time += fallback.build_time_s
+                                       expanded_nodes=expanded) from None
+            budget.enter(PlanStage.SMOOTHING)
+            waypoints, keep = _waypoints(paths, stops)
+            smoothed = self._smooth(waypoints, keep, budget)
+            build_time += fallback.unreported_build_time()
+        budget.enter(PlanStage.TIMING)
         trajectory = time_parameterize(smoothed, config.max_speed_horizontal,
                                        config.max_speed_vertical, config.max_accel_horizontal,
                                        config.max_accel_vertical)
+        budget.check()
         smoothing_time = time.perf_counter() - smoothing_started
+        path = np.vstack([paths[0]] + [p[1:] for p in paths[1:]])
+        legs[:] = _timed_legs(legs, trajectory, stops)
         repaired = len(smoothed.repaired_stretches)
         message = (f'path of {polyline_length(path):.3f} m over {len(path)} nodes, '
-                   f'{found.expanded_nodes} nodes expanded; smoothed {smoothed.length_m:.3f} m, '
+                   f'{expanded} nodes expanded; smoothed {smoothed.length_m:.3f} m, '
                    f'min clearance {smoothed.min_clearance_m:.3f} m'
+                   + (f', {len(via_points)} via-point(s)' if len(via_points) else '')
                    + (f', {repaired} stretch(es) repaired' if repaired else ''))
         return PlanResult(
             status=PlanStatus.OK, message=message, **base, path=path,
-            path_length_m=polyline_length(path), expanded_nodes=found.expanded_nodes,
-            planning_time_s=found.search_time_s, grid_build_time_s=build_time,
+            path_length_m=polyline_length(path), cost=sum(leg.cost for leg in legs),
+            expanded_nodes=expanded, planning_time_s=search_time, grid_build_time_s=build_time,
             shortcut_path=smoothed.shortcut_path, shortcut_length_m=smoothed.shortcut_length_m,
             trajectory=trajectory, smoothed_length_m=smoothed.length_m,
             min_clearance_m=smoothed.min_clearance_m,
             min_clearance_point=smoothed.min_clearance_point,
             repaired_stretches=tuple(smoothed.repaired_stretches),
-            smoothing_time_s=smoothing_time)
+            smoothing_time_s=smoothing_time, via=via_points, legs=tuple(legs),
+            curve=smoothed.curve, total_time_s=budget.elapsed_s,
+            energy=estimate_energy(trajectory, VehicleModel(config.vehicle_mass,
+                                                            config.hover_power)))
 
-    def _search(self, inflated: _InflatedGrid, start_node, goal_node, algorithm: str):
+    def _check_stops(self, inflated: _InflatedGrid, stops: np.ndarray) -> np.ndarray:
+        """Grid nodes of the start, the via-points and the goal, each checked."""
+        nodes = [None] * len(stops)
+        nodes[0], nodes[-1] = self._check_endpoints(inflated, stops[0], stops[-1])
+        for number in range(1, len(stops) - 1):
+            try:
+                nodes[number] = self._check_endpoints(inflated, stops[0], stops[number])[1]
+            except (GoalOutsideMapError, GoalOccupiedError) as error:
+                text = str(error).replace('goal', f'via-point {number} (end of leg {number - 1})',
+                                          1)
+                failure = type(error)(text)
+                failure.leg = number - 1  # type: ignore[attr-defined]
+                raise failure from None
+        return np.asarray(nodes)
+
+    def _search_legs(self, inflated: _InflatedGrid, nodes: np.ndarray, name: str,
+                     budget: PlanBudget, legs: List[LegResult]):
+        """One search per leg; node paths [m] and the total number of expanded nodes."""
+        grid = inflated.grid
+        paths = []
+        expanded = 0
+        for number in range(len(nodes) - 1):
+            try:
+                found = self._search(inflated, nodes[number], nodes[number + 1], name, budget)
+            except PlanningError as error:
+                if len(nodes) > 2:
+                    error.leg = number  # type: ignore[attr-defined]
+                    error.args = (f'leg {number}: {error}',)
+                error.expanded_nodes += expanded
+                raise
+            expanded += found.expanded_nodes
+            path = grid.index_to_world(found.path_indices)
+            legs.append(LegResult(number, path_length_m=polyline_length(path),
+                                  expanded_nodes=found.expanded_nodes, cost=found.cost_m))
+            paths.append(path)
+        return paths, expanded
+
+    def _search(self, inflated: _InflatedGrid, start_node, goal_node, algorithm: str,
+                budget: Optional[PlanBudget] = None):
         config = self._config
         if self._workspace is None or self._workspace.shape != inflated.grid.shape:
             self._workspace = SearchWorkspace(inflated.blocked)
@@ -248,15 +420,20 @@ class Planner:
             self._workspace.set_blocked(inflated.blocked)
         return self._workspace.search(start_node, goal_node, algorithm, config.resolution,
                                       config.adaptive_threshold, config.max_expansions,
-                                      config.max_planning_time)
+                                      weight=config.search_weight,
+                                      climb_weight=config.climb_weight,
+                                      descent_weight=config.descent_weight,
+                                      checkpoint=None if budget is None else budget.check)
 
-    def _smooth(self, waypoints: np.ndarray):
+    def _smooth(self, waypoints: np.ndarray, keep: Sequence[int] = (),
+                budget: Optional[PlanBudget] = None):
         config = self._config
         grid = self._primary().grid
         return smooth_path(waypoints, self._obstacles, config.safety_margin, config.resolution,
                            shortcut=config.shortcut, mode=config.smoothing,
                            sample_spacing=config.sample_spacing, index_step=config.index_step,
-                           bounds=(grid.bounds_min, grid.bounds_max))
+                           bounds=(grid.bounds_min, grid.bounds_max), keep=keep,
+                           checkpoint=None if budget is None else budget.check)
 
     def _check_endpoints(self, inflated: _InflatedGrid, start: np.ndarray, goal: np.ndarray):
         grid = inflated.grid
@@ -269,6 +446,9 @@ class Planner:
             raise GoalOutsideMapError(
                 f'goal {goal.tolist()} is outside the bounds {grid.bounds_min.tolist()} .. '
                 f'{grid.bounds_max.tolist()}')
+        for which, point in (('start', start), ('goal', goal)):  # names the fence or zone
+            check_endpoint(self._obstacles, point, which, gamma,
+                           _ENDPOINT_TOLERANCE * self._config.resolution)
         start_node = grid.world_to_index(start)
         goal_node = grid.world_to_index(goal)
         # The smoothed curve must keep gamma with a little room for rounding (the clearance
@@ -300,9 +480,9 @@ class Planner:
 
     def _conservative(self) -> _InflatedGrid:
         if self._fallback is None:
-            config = self._config
-            margin = config.safety_margin + _LIPSCHITZ_FACTOR * config.resolution
-            self._fallback = _InflatedGrid(self._primary().grid, self._obstacles, margin)
+            self._fallback = _InflatedGrid(self._primary().grid, self._obstacles,
+                                           fallback_margin(self._config))
+            self.fallback_builds += 1
         return self._fallback
 
     def _make_grid(self) -> VoxelGrid:
@@ -313,6 +493,69 @@ class Planner:
     def _invalidate(self) -> None:
         self._inflated = None
         self._fallback = None
+
+
+def fallback_margin(config: PlannerConfig) -> float:
+    """Margin of the conservative fallback grid [m]: gamma + delta * sqrt(3) / 2, on which the
+    raw polyline itself keeps gamma."""
+    return config.safety_margin + _LIPSCHITZ_FACTOR * config.resolution
+
+
+def certify_plan(result: PlanResult, obstacles: ObstacleSet, safety_margin: float,
+                 resolution: float, position=None,
+                 ahead_m: Optional[float] = None) -> ClearanceVerdict:
+    """Certify that the curve of a plan keeps ``safety_margin`` from ``obstacles``.
+
+    The clearance engine's certificate over the continuous curve (see
+    :mod:`uav_global_planner.core.clearance`); thread-safe, as the obstacle sets are.
+
+    Parameters
+    ----------
+    result : PlanResult
+        A successful plan (with its ``curve``); other results are clear.
+    obstacles : ObstacleSet
+    safety_margin, resolution : float
+        gamma and delta [m] to certify with (normally the plan's own).
+    position : array_like, shape (3,), optional
+        Where the vehicle is [m]: only the curve beyond the nearest of the plan's samples is
+        checked (the stretch already flown no longer matters). The whole curve when None.
+    ahead_m : float, optional
+        Check the first ``ahead_m`` metres beyond ``position`` on their own first, and the rest
+        only if they are clear: a block near the vehicle is found in the time of a short check.
+
+    Returns
+    -------
+    ClearanceVerdict
+    """
+    curve = result.curve
+    if curve is None or obstacles.is_empty():
+        return ClearanceVerdict(True, None)
+    arc = 0.0
+    if position is not None and result.trajectory is not None:
+        samples = result.trajectory.positions
+        nearest = int(np.argmin(np.linalg.norm(samples - as_point(position, 'position'),
+                                               axis=1)))
+        # The chord sum is at most the arc length: checking from there is conservative.
+        arc = polyline_length(samples[:nearest + 1])
+    pieces = curve.pieces_after(arc)
+    # The pieces kept, in curve order, and where each begins along the curve.
+    starts = curve.piece_start_m[:-1][curve.piece_start_m[1:] >= arc]
+    if len(starts) != len(pieces):
+        starts = np.full(len(pieces), curve.piece_start_m[-2])
+    batches = [np.arange(len(pieces))]
+    if ahead_m is not None and len(pieces) > 1:
+        near = int(np.count_nonzero(starts < arc + float(ahead_m)))
+        if 0 < near < len(pieces):
+            batches = [np.arange(near), np.arange(near, len(pieces))]
+    for batch in batches:
+        part = Pieces(pieces.coef[:, batch, :], pieces.h[batch], linear=pieces.linear)
+        _, cert = certify_pieces(part, obstacles, safety_margin, resolution)
+        if cert.violated.any():
+            piece = int(np.flatnonzero(cert.violated)[0])
+            where = cert.piece_worst[piece] if cert.piece_worst is not None else None
+            return ClearanceVerdict(False, None if where is None else np.asarray(where),
+                                    max(float(starts[batch[piece]]) - arc, 0.0))
+    return ClearanceVerdict(True, None)
 
 
 def densify(points: np.ndarray, spacing: float) -> np.ndarray:
@@ -357,3 +600,49 @@ def _with_exact_endpoints(path: np.ndarray, start: np.ndarray, goal: np.ndarray)
     if np.linalg.norm(path[-1] - goal) > _SNAP_TOLERANCE:
         parts.append(goal[None, :])
     return np.vstack(parts) if len(parts) > 1 else path
+
+
+def _via_points(via) -> np.ndarray:
+    """Via-points as an (V, 3) array [m], each checked."""
+    if via is None:
+        return np.empty((0, 3))
+    points = [as_point(point, f'via-point {number + 1}') for number, point in enumerate(via)]
+    return np.asarray(points).reshape(-1, 3)
+
+
+def _waypoints(paths: Sequence[np.ndarray], stops: np.ndarray) -> Tuple[np.ndarray, List[int]]:
+    """Waypoints through every leg's node path and the exact stops; indices of the via-points.
+
+    Each via-point follows its node (the end of one leg and the start of the next); the
+    smoothing keeps it and passes through it exactly.
+    """
+    if len(paths) == 1:
+        return _with_exact_endpoints(paths[0], stops[0], stops[-1]), []
+    points: List[np.ndarray] = []
+    keep: List[int] = []
+    if np.linalg.norm(paths[0][0] - stops[0]) > _SNAP_TOLERANCE:
+        points.append(stops[0])
+    for number, path in enumerate(paths):
+        points.extend(path if number == 0 else path[1:])
+        target = stops[number + 1]
+        if np.linalg.norm(points[-1] - target) > _SNAP_TOLERANCE:
+            points.append(target)
+        if number < len(paths) - 1:
+            keep.append(len(points) - 1)
+    return np.asarray(points), keep
+
+
+def _timed_legs(legs: Sequence[LegResult], trajectory: Trajectory,
+                stops: np.ndarray) -> List[LegResult]:
+    """The legs with the smoothed length and flight time between their stops."""
+    samples = trajectory.positions
+    arc = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(samples, axis=0), axis=1))]
+    marks = [0]
+    for stop in stops[1:-1]:
+        # Via-points are samples of the curve; the nearest after the previous mark is it.
+        later = samples[marks[-1]:]
+        marks.append(marks[-1] + int(np.argmin(np.linalg.norm(later - stop, axis=1))))
+    marks.append(len(samples) - 1)
+    return [replace(leg, smoothed_length_m=float(arc[marks[k + 1]] - arc[marks[k]]),
+                    duration_s=float(trajectory.times[marks[k + 1]] - trajectory.times[marks[k]]))
+            for k, leg in enumerate(legs)]

@@ -1,7 +1,7 @@
 """Result types of the planner: frozen dataclasses with numpy fields in metres and seconds."""
 
 from dataclasses import dataclass, field
-from typing import Optional, Tuple
+from typing import Any, Optional, Tuple
 
 import numpy as np
 
@@ -53,6 +53,35 @@ class RepairedStretch:
     clearance_before_m: float
 
 
+@dataclass(frozen=True)
+class LegResult:
+    """One leg of a plan through via-points: from one via-point (or the start) to the next.
+
+    Attributes
+    ----------
+    index : int
+        Leg number, 0 for the leg from the start.
+    path_length_m : float
+        Length of the leg's grid-node path [m] (NaN when it was not searched).
+    smoothed_length_m : float
+        Arc length of the smoothed curve over the leg [m] (NaN on failure).
+    duration_s : float
+        Flight time of the leg on the timed trajectory [s] (NaN on failure).
+    expanded_nodes : int
+        Nodes the leg's search expanded.
+    cost : float
+        Search cost of the leg's grid-node path [m] (its length with both climb and descent
+        weights 1; NaN when it was not searched).
+    """
+
+    index: int
+    path_length_m: float = float('nan')
+    smoothed_length_m: float = float('nan')
+    duration_s: float = float('nan')
+    expanded_nodes: int = 0
+    cost: float = float('nan')
+
+
 @dataclass(frozen=True, eq=False)
 class PlanResult:
     """Everything one planning request produced; ``status`` says whether it succeeded.
@@ -69,6 +98,9 @@ class PlanResult:
         Raw grid-node path [m], start node to goal node; empty on failure.
     path_length_m : float
         Length of ``path`` (eq. 15) [m]; NaN on failure.
+    cost : float
+        Search cost of ``path`` [m]: the sum of its step costs with the climb and descent
+        weights of the energy-aware cost (the length when both are 1); NaN on failure.
     expanded_nodes : int
         Nodes taken off the open list by the search.
     planning_time_s : float
@@ -90,6 +122,20 @@ class PlanResult:
     repaired_stretches : tuple of RepairedStretch
     smoothing_time_s : float
         Time for shortcutting, smoothing, clearance check and timing [s].
+    via : numpy.ndarray, shape (V, 3)
+        Via-points the curve passes through exactly, in order [m].
+    legs : tuple of LegResult
+        One per leg (V + 1 of them) once planned; the legs searched so far on failure.
+    failed_leg : int
+        The leg that failed (-1 when none, or when the failure is not a leg's).
+    curve : PathCurve or None
+        The certified continuous curve (:class:`~uav_global_planner.core.smoothing.PathCurve`),
+        for later clearance checks against new obstacles; None on failure.
+    total_time_s : float
+        Wall-clock time of the whole request [s].
+    energy : EnergyEstimate or None
+        Flight time and energy of the trajectory for the configured vehicle
+        (:func:`uav_global_planner.core.energy.estimate_energy`); None on failure.
     """
 
     status: PlanStatus
@@ -99,6 +145,7 @@ class PlanResult:
     goal: np.ndarray
     path: np.ndarray = field(default_factory=lambda: _EMPTY_PATH)
     path_length_m: float = float('nan')
+    cost: float = float('nan')
     expanded_nodes: int = 0
     planning_time_s: float = 0.0
     resolution: float = float('nan')
@@ -113,6 +160,12 @@ class PlanResult:
     min_clearance_point: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
     repaired_stretches: Tuple[RepairedStretch, ...] = ()
     smoothing_time_s: float = 0.0
+    via: np.ndarray = field(default_factory=lambda: _EMPTY_PATH)
+    legs: Tuple[LegResult, ...] = ()
+    failed_leg: int = -1
+    curve: Optional[Any] = None
+    total_time_s: float = 0.0
+    energy: Optional[Any] = None
 
     @property
     def ok(self) -> bool:

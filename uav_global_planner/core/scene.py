@@ -13,28 +13,54 @@ Format (every key below is required except ``description``, ``frame_id`` and ``o
       - {type: sphere, center: [2.3, -2.9, 2.1], radius: 2.35}
       - {type: box, min: [1.0, 1.0, 0.0], max: [2.0, 3.0, 4.0]}
       - {type: points, points: [[0.0, 0.0, 1.0], [0.1, 0.0, 1.0]]}
+      - {type: points_file, path: maps/site.las, downsample: 0.2}   # downsample optional
+    geodetic_origin: {lat: 47.3977, lon: 8.5456, alt_amsl: 488.0}   # optional: WGS84 of x=y=z=0
+    geofence:                                   # optional, see core/airspace.py
+      inclusion: {polygon: [[x, y], ...], floor: 0.0, ceiling: 120.0}
+      exclusion:
+        - {type: prism, polygon: [[x, y], ...], floor: 0.0, ceiling: 60.0}
+        - {type: cylinder, center: [x, y], radius: 30.0, floor: 0.0, ceiling: 200.0}
+        - {type: box, min: [x, y, z], max: [x, y, z]}
+    cost: {climb_weight: 1.0, descent_weight: 1.0}   # optional, the energy-aware step cost
+    vehicle: {mass: 1.5, hover_power: 180.0}         # optional [kg], [W], see core/energy.py
+
+``max_voxels`` (an integer) raises or lowers the grid's node cap. A ``points_file`` path is
+resolved against the scene file's folder; its formats and margins are those of
+:mod:`uav_global_planner.core.mapfiles`. A map's margin (OctoMap cells, downsampling: every
+occupied location lies within it of a point) is added to the safety margin, so the planner keeps
+gamma from what the file describes; :attr:`Scene.map_margin_m` says how much was added.
 
 Unknown keys or obstacle types, missing keys and wrong types raise
 :class:`~uav_global_planner.core.errors.InvalidInputError` whose message starts with the key path,
 for example ``obstacles[2].radius: must be a number > 0 m``.
 """
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 import math
 from pathlib import Path
-from typing import Any, List, Union
+from typing import Any, List, Mapping, Optional, Tuple, Union
 
 import numpy as np
 import yaml
 
-from uav_global_planner.core.config import PlannerConfig, validate_config
+from uav_global_planner.core.airspace import Airspace, parse_geofence
+from uav_global_planner.core.config import MAX_COST_WEIGHT, PlannerConfig, validate_config
+from uav_global_planner.core.energy import parse_vehicle, VehicleModel
 from uav_global_planner.core.errors import InvalidInputError
+from uav_global_planner.core.geodesy import GeodeticOrigin
+from uav_global_planner.core.mapfiles import load_map_points
 from uav_global_planner.core.obstacles import Box, Obstacle, ObstacleSet, PointSet, Sphere
 
 _TOP_KEYS = {'description', 'frame_id', 'bounds', 'resolution', 'safety_margin',
-             'adaptive_threshold', 'start', 'goal', 'obstacles'}
+             'adaptive_threshold', 'start', 'goal', 'obstacles', 'max_voxels',
+             'geodetic_origin', 'via', 'geofence', 'cost', 'vehicle'}
 _REQUIRED_KEYS = ('bounds', 'resolution', 'safety_margin', 'adaptive_threshold', 'start', 'goal')
-_OBSTACLE_KEYS = {'sphere': ('center', 'radius'), 'box': ('min', 'max'), 'points': ('points',)}
+_OBSTACLE_KEYS = {'sphere': ('center', 'radius'), 'box': ('min', 'max'), 'points': ('points',),
+                  'points_file': ('path',)}
+_OPTIONAL_OBSTACLE_KEYS = {'points_file': ('downsample',)}
+
+# libyaml's parser where PyYAML was built with it: several times faster on inline point lists.
+_YAML_LOADER = getattr(yaml, 'CSafeLoader', yaml.SafeLoader)
 
 #: Folder of the scenes shipped with the package, in a source checkout.
 _SOURCE_SCENES = Path(__file__).resolve().parents[2] / 'config' / 'scenes'
@@ -56,6 +82,18 @@ class Scene:
     start, goal : numpy.ndarray, shape (3,)
         [m]
     obstacles : ObstacleSet
+    map_margin_m : float
+        Largest margin of the scene's map files [m], already added to
+        ``config.safety_margin``; an override of gamma adds it again.
+    geodetic_origin : GeodeticOrigin or None
+        WGS84 latitude, longitude [deg] and AMSL altitude [m] of the frame's origin (key
+        ``geodetic_origin: {lat, lon, alt_amsl}``); None when the scene has none.
+    via : numpy.ndarray, shape (V, 3)
+        Via-points between start and goal, in order [m] (key ``via: [[x, y, z], ...]``).
+    airspace : Airspace
+        The ``geofence`` key's fences and zones, already in ``obstacles``.
+    vehicle : VehicleModel
+        The ``vehicle`` key's mass and hover power, for energy estimates.
     """
 
     name: str
@@ -65,6 +103,11 @@ class Scene:
     start: np.ndarray
     goal: np.ndarray
     obstacles: ObstacleSet
+    map_margin_m: float = 0.0
+    geodetic_origin: Optional[GeodeticOrigin] = None
+    via: np.ndarray = field(default_factory=lambda: np.empty((0, 3)))
+    airspace: Airspace = field(default_factory=Airspace)
+    vehicle: VehicleModel = field(default_factory=VehicleModel)
 
 
 def _fail(path: str, reason: str) -> InvalidInputError:
@@ -101,37 +144,80 @@ def _require(mapping: dict, key: str, path: str) -> Any:
     return mapping[key]
 
 
-def _obstacle(entry: Any, path: str) -> Obstacle:
+def _obstacle(entry: Any, path: str, folder: Optional[Path] = None) -> Tuple[Obstacle, float]:
+    """One obstacle and its margin [m] (non-zero only for map files, see mapfiles)."""
     if not isinstance(entry, dict):
         raise _fail(path, f'must be a mapping with a type, got {type(entry).__name__}')
     kind = _require(entry, 'type', path)
     if kind not in _OBSTACLE_KEYS:
         raise _fail(f'{path}.type', f'unknown obstacle type {kind!r}; allowed: '
                     f'{", ".join(_OBSTACLE_KEYS)}')
-    _mapping(entry, path, {'type', *_OBSTACLE_KEYS[kind]})
+    _mapping(entry, path, {'type', *_OBSTACLE_KEYS[kind], *_OPTIONAL_OBSTACLE_KEYS.get(kind, ())})
     values = {key: _require(entry, key, path) for key in _OBSTACLE_KEYS[kind]}
+    if kind == 'points_file':
+        return _points_file(entry, values['path'], path, folder)
     if kind == 'sphere':
         center = _vector(values['center'], f'{path}.center')
         radius = _number(values['radius'], f'{path}.radius')
         if radius <= 0.0:
             raise _fail(f'{path}.radius', f'must be > 0 m, got {radius}')
-        return Sphere(center, radius)
+        return Sphere(center, radius), 0.0
     if kind == 'box':
         lo = _vector(values['min'], f'{path}.min')
         hi = _vector(values['max'], f'{path}.max')
         if np.any(lo >= hi):
             raise _fail(path, f'min must be below max on every axis, got min {lo.tolist()} '
                         f'and max {hi.tolist()}')
-        return Box(lo, hi)
+        return Box(lo, hi), 0.0
     points = values['points']
     if not isinstance(points, list):
         raise _fail(f'{path}.points', 'must be a list of [x, y, z] triples')
     return PointSet(np.array([_vector(p, f'{path}.points[{n}]') for n, p in enumerate(points)])
-                    .reshape(-1, 3))
+                    .reshape(-1, 3)), 0.0
 
 
-def parse_scene(data: Any, name: str = 'scene',
-                base: PlannerConfig = PlannerConfig()) -> Scene:
+def _points_file(entry: dict, file: Any, path: str,
+                 folder: Optional[Path]) -> Tuple[PointSet, float]:
+    if not isinstance(file, str) or not file.strip():
+        raise _fail(f'{path}.path', f'must be a file name, got {file!r}')
+    downsample = entry.get('downsample')
+    if downsample is not None:
+        downsample = _number(downsample, f'{path}.downsample')
+        if downsample <= 0.0:
+            raise _fail(f'{path}.downsample', f'must be a cell size > 0 m, got {downsample}')
+    location = Path(file).expanduser()
+    if not location.is_absolute() and folder is not None:
+        location = folder / location
+    try:
+        loaded = load_map_points(location, downsample)
+    except InvalidInputError as error:
+        raise type(error)(f'{path}.path: {error}') from None
+    return loaded.obstacle(), loaded.margin_m
+
+
+def _cost_weights(value: Any) -> dict:
+    """The ``cost`` key's climb and descent weights, as PlannerConfig fields."""
+    if value is None:
+        return {}
+    keys = _mapping(value, 'cost', {'climb_weight', 'descent_weight'})
+    weights = {}
+    for key in sorted(keys):
+        weight = _number(keys[key], f'cost.{key}')
+        if not 0.0 <= weight <= MAX_COST_WEIGHT:
+            raise _fail(f'cost.{key}', f'must be in [0, {MAX_COST_WEIGHT:g}], got {weight}')
+        weights[key] = weight
+    return weights
+
+
+def _max_voxels(value: Any) -> int:
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise _fail('max_voxels', f'must be an integer node count, got {value!r}')
+    return value
+
+
+def parse_scene(data: Any, name: str = 'scene', base: PlannerConfig = PlannerConfig(),
+                folder: Optional[Path] = None,
+                overrides: Optional[Mapping[str, Any]] = None) -> Scene:
     """Validate a scene already loaded from YAML.
 
     Parameters
@@ -142,6 +228,11 @@ def parse_scene(data: Any, name: str = 'scene',
         Name used in messages and reports.
     base : PlannerConfig
         Settings the scene does not define (algorithm, budgets, smoothing, limits).
+    folder : Path, optional
+        Folder that relative ``points_file`` paths start from; the working directory if None.
+    overrides : mapping of str to Any, optional
+        :class:`PlannerConfig` fields that replace the scene's own (command-line options), applied
+        before validation, so an override can lift a cap the scene's values exceed.
 
     Raises
     ------
@@ -167,19 +258,48 @@ def parse_scene(data: Any, name: str = 'scene',
         entries = []
     if not isinstance(entries, list):
         raise _fail('obstacles', f'must be a list, got {type(entries).__name__}')
-    obstacles: List[Obstacle] = [_obstacle(e, f'obstacles[{n}]') for n, e in enumerate(entries)]
     config = replace(base, bounds_min=tuple(lo), bounds_max=tuple(hi),
                      resolution=_number(top['resolution'], 'resolution'),
                      safety_margin=_number(top['safety_margin'], 'safety_margin'),
                      adaptive_threshold=_number(top['adaptive_threshold'],
                                                 'adaptive_threshold'))
-    return Scene(name=name, description=description, frame_id=frame_id,
-                 config=validate_config(config), start=_vector(top['start'], 'start'),
-                 goal=_vector(top['goal'], 'goal'), obstacles=ObstacleSet(obstacles))
+    if 'max_voxels' in top:
+        config = replace(config, max_voxels=_max_voxels(top['max_voxels']))
+    config = replace(config, **_cost_weights(top.get('cost')))
+    config = replace(config, **dict(overrides or {}))
+    # Settings first: a wrong resolution is reported before any map file is read.
+    config = validate_config(config)
+    start, goal = _vector(top['start'], 'start'), _vector(top['goal'], 'goal')
+    via_entries = top.get('via') or []
+    if not isinstance(via_entries, list):
+        raise _fail('via', f'must be a list of [x, y, z], got {type(via_entries).__name__}')
+    via = np.array([_vector(v, f'via[{n}]') for n, v in enumerate(via_entries)]).reshape(-1, 3)
+    parsed = [_obstacle(e, f'obstacles[{n}]', folder) for n, e in enumerate(entries)]
+    obstacles: List[Obstacle] = [obstacle for obstacle, _ in parsed]
+    margin = max((m for _, m in parsed), default=0.0)
+    if margin > 0.0:
+        config = validate_config(replace(config, safety_margin=config.safety_margin + margin))
+    airspace = parse_geofence(top.get('geofence'))
+    vehicle = parse_vehicle(top.get('vehicle'))
+    if top.get('vehicle') is not None:
+        # The energy estimate of every plan uses the scene's vehicle.
+        config = validate_config(replace(config, vehicle_mass=vehicle.mass,
+                                         hover_power=vehicle.hover_power))
+    origin = None
+    if top.get('geodetic_origin') is not None:
+        keys = _mapping(top['geodetic_origin'], 'geodetic_origin', {'lat', 'lon', 'alt_amsl'})
+        origin = GeodeticOrigin(*(_number(_require(keys, key, 'geodetic_origin'),
+                                          f'geodetic_origin.{key}')
+                                  for key in ('lat', 'lon', 'alt_amsl')))
+    return Scene(name=name, description=description, frame_id=frame_id, config=config,
+                 start=start, goal=goal,
+                 obstacles=ObstacleSet(obstacles + list(airspace.shapes())), map_margin_m=margin,
+                 geodetic_origin=origin, via=via, airspace=airspace, vehicle=vehicle)
 
 
-def load_scene(path: Union[str, Path], base: PlannerConfig = PlannerConfig()) -> Scene:
-    """Read and validate a scene file.
+def load_scene(path: Union[str, Path], base: PlannerConfig = PlannerConfig(),
+               overrides: Optional[Mapping[str, Any]] = None) -> Scene:
+    """Read and validate a scene file (``base`` and ``overrides`` as in :func:`parse_scene`).
 
     Raises
     ------
@@ -196,10 +316,11 @@ def load_scene(path: Union[str, Path], base: PlannerConfig = PlannerConfig()) ->
         raise InvalidInputError(f'{file}: not a text file, so not a scene file ({error.reason} '
                                 f'at byte {error.start})') from None
     try:
-        data = yaml.safe_load(text)
+        data = yaml.load(text, Loader=_YAML_LOADER)  # noqa: S506 - a safe loader
     except yaml.YAMLError as error:
         raise InvalidInputError(f'{file}: not valid YAML ({error})') from None
-    return parse_scene(data, name=file.stem, base=base)
+    return parse_scene(data, name=file.stem, base=base, folder=file.resolve().parent,
+                       overrides=overrides)
 
 
 def shipped_scene_dirs() -> List[Path]:

@@ -13,11 +13,65 @@ One A* routine serves every algorithm; only the heuristic h differs, chosen by a
 ``octile``
     The exact obstacle-free 26-connected distance; admissible and consistent, and the tightest
     such bound, so it expands the fewest nodes of the optimal heuristics.
+``weighted``
+    Weighted A*: w times the octile distance, w >= 1. With a consistent heuristic and closed
+    nodes never reopened, the path found costs at most w times the optimum (Likhachev, Gordon
+    and Thrun, ARA*, NIPS 2003, theorem 1), for far fewer expansions on open grids.
 
 Moving to one of the 26 neighbours costs ``resolution * sqrt(number of axes changed)`` [m].
 Closed nodes are never reopened: with ``dijkstra``, ``astar`` and ``octile`` (consistent
 heuristics) the first expansion of a node is already optimal; with ``adaptive`` reopening would
 only undo the speed-up the paper asks for.
+
+Energy-aware cost
+-----------------
+With a climb weight ``w_u`` and a descent weight ``w_d`` (each >= 0) a step ``d`` costs its
+length plus ``(w - 1)`` times its vertical length, ``w`` the weight of its direction::
+
+    c(d) = delta * (|d| + (w_u - 1) [d_z = +1] + (w_d - 1) [d_z = -1]),
+
+which is >= 0 (a vertical step costs ``w * delta``) and, with both weights 1, the paper's length
+(eq. 15). The heuristics become (in cells; ``a``, ``b`` the horizontal index differences to the
+goal, ``z`` the signed vertical one, goal minus node, and ``oct(p, q, r)`` the octile distance
+above):
+
+``octile`` (and ``weighted``, w times it)
+    ``h = omega * |z| + min over m in M of [oct(a, b, m) + S * (m - |z|) / 2]``, with
+    ``omega = w_u - 1`` if the goal is above (``z > 0``), ``w_d - 1`` if below,
+    ``S = w_u + w_d - 2`` and ``M = {|z|} u {a, b if above |z|}``; when
+    ``S >= -2 (sqrt(3) - sqrt(2))`` only ``m = |z|`` counts and ``h = oct(a, b, |z|) +
+    omega |z|``, the exact obstacle-free cost.
+
+    *Derivation.* A path with ``U`` up and ``D`` down steps (``U - D = z``) has length at least
+    ``oct(a, b, U + D)``: flipping its down steps to up steps keeps every step's length and gives
+    a path to the displacement ``(a, b, U + D)``, whose shortest length is the octile distance.
+    So its cost is at least ``G(U, D) = oct(a, b, U + D) + omega_u U + omega_d D``; for
+    ``z >= 0`` put ``U = |z| + k``, ``D = k``: ``G = oct(a, b, |z| + 2k) + omega |z| + S k``.
+    ``oct(a, b, m)`` is convex and piecewise linear in ``m`` (slopes ``sqrt(3) - sqrt(2)``,
+    ``sqrt(2) - 1`` and 1, breaking at ``m = b`` and ``m = a``), so over real ``k >= 0`` the
+    minimum is at ``m = |z|`` or at a breakpoint above it: that minimum is ``h``. Extra up-down
+    pairs pay (a sawtooth) only when ``w_u + w_d < 2 + 2 sqrt(2) - 2 sqrt(3)`` (about 1.36);
+    the formula covers it.
+
+    *Admissible*: every path's cost is ``G(U, D)`` or more for its own integer ``U, D``, and
+    ``h`` is the minimum of ``G`` over a superset.
+
+    *Consistent*: let ``x' = x - d`` be the neighbour's displacement after step ``d`` and
+    ``(U', D')`` the minimiser for ``x'``. Then ``U = U' + [d_z = 1]``, ``D = D' + [d_z = -1]``
+    is feasible for ``x`` and ``h(x) <= G(U, D) = oct(a, b, U' + D' + |d_z|) + omega_u U'
+    + omega_d D' + c(d) - |d|``. The octile distance is a norm, so
+    ``oct(a, b, U' + D' + |d_z|) <= oct(a - d_x, b - d_y, U' + D') + oct(d) `` with
+    ``oct(d) = |d|`` for a unit step; hence ``h(x) <= h(x') + c(d)``. Also ``h(goal) = 0``
+    (``G(k, k) = (2 + S) k >= 0``) and ``h >= 0`` (``oct(a, b, m) >= m`` gives
+    ``G >= w_u U + w_d D``). With both weights 1 it is the octile distance, bit for bit.
+``astar``
+    The Euclidean distance times ``kappa = min(1, w_u, w_d)``: a path's cost is at least
+    ``kappa`` times its length (``c(d) >= kappa |d|`` for every step, the vertical step being
+    the worst ratio), and its length at least the Euclidean distance; consistency follows from
+    the triangle inequality the same way. ``kappa = 1`` (the paper's A*) whenever both weights
+    are >= 1.
+``adaptive``
+    Unchanged: the paper's definition, on lengths.
 
 Implementation: a kernel compiled by numba (:mod:`uav_global_planner.core.jit`) works on flat
 C-order node numbers. The per-node arrays (cost g, parent direction, heap position, generation
@@ -31,25 +85,31 @@ checked in Python between chunks (numba code cannot read the clock).
 
 from dataclasses import dataclass
 import math
+import mmap
 import threading
 import time
-from typing import Dict
+from typing import Callable, Dict, Optional
 
 import numpy as np
 
 from uav_global_planner.core.errors import (GoalOccupiedError, InvalidInputError,
-                                            NoValidPathError, PlanningTimeoutError,
-                                            StartOccupiedError)
+                                            NoValidPathError, PlanningError,
+                                            PlanningTimeoutError, StartOccupiedError)
 from uav_global_planner.core.jit import njit
 
 _H_ZERO = 0
 _H_EUCLIDEAN = 1
 _H_ADAPTIVE = 2
 _H_OCTILE = 3
+_H_WEIGHTED = 4
 
 #: Heuristic code of each algorithm name accepted by :func:`search`.
 ALGORITHM_CODES: Dict[str, int] = {'dijkstra': _H_ZERO, 'astar': _H_EUCLIDEAN,
-                                   'adaptive': _H_ADAPTIVE, 'octile': _H_OCTILE}
+                                   'adaptive': _H_ADAPTIVE, 'octile': _H_OCTILE,
+                                   'weighted': _H_WEIGHTED}
+
+#: Default suboptimality bound w of ``weighted``: its path costs at most w times the optimum.
+DEFAULT_WEIGHT = 1.05
 
 # Kernel return codes.
 _FOUND = 0
@@ -78,6 +138,9 @@ _CHUNK = 20_000
 # Parent code of the start node; 0..25 are directions into the node.
 _NO_PARENT = 26
 
+# Per-node arrays from this size up are memory maps without huge pages (see _lazy_zeros) [bytes].
+_LAZY_BYTES = 1 << 24
+
 # Node numbers, heap positions and the heap itself are int32 (half the memory of int64).
 _MAX_NODES = 2 ** 31 - 1
 
@@ -92,6 +155,18 @@ _MAX_GENERATION = 2 ** 31 - 1
 
 _SQRT2 = math.sqrt(2.0)
 _SQRT3 = math.sqrt(3.0)
+# Below this sum of (weight - 1) over climbing and descending, up-down pairs of steps can cost
+# less than the level distance they cover (module notes): -2 (sqrt(3) - sqrt(2)).
+_SAWTOOTH_PAYS = -2.0 * (_SQRT3 - _SQRT2)
+
+# Slots of the kernel's float64 parameter array.
+_P_RESOLUTION = 0    # delta [m]
+_P_ETA = 1           # adaptive threshold [m]
+_P_WEIGHT = 2        # w of weighted A*
+_P_OMEGA_UP = 3      # climb weight - 1
+_P_OMEGA_DOWN = 4    # descent weight - 1
+_P_KAPPA = 5         # scale of the Euclidean heuristic
+_PARAMS_SIZE = 6
 
 
 def _directions() -> np.ndarray:
@@ -106,6 +181,9 @@ _DIRECTIONS.setflags(write=False)
 # Length of each move in cells: sqrt(number of axes changed), i.e. 1, sqrt(2) or sqrt(3).
 _STEP_LENGTH = np.sqrt(np.abs(_DIRECTIONS).sum(axis=1).astype(np.float64))
 _STEP_LENGTH.setflags(write=False)
+# 1.0 where a move climbs (dk = +1), resp. descends (dk = -1), else 0.0.
+_UP = (_DIRECTIONS[:, 2] > 0).astype(np.float64)
+_DOWN = (_DIRECTIONS[:, 2] < 0).astype(np.float64)
 
 
 @dataclass(frozen=True, eq=False)
@@ -118,7 +196,8 @@ class SearchResult:
         Node indices (i, j, k) from the start node (first) to the goal node (last); consecutive
         nodes are 26-neighbours.
     cost_m : float
-        Sum of the step costs along the path [m].
+        Sum of the step costs along the path [m]: its length, or with climb and descent weights
+        other than 1 the energy-aware cost (see the module notes).
     expanded_nodes : int
         Nodes closed (popped from the open list and expanded), the goal included.
     search_time_s : float
@@ -132,25 +211,56 @@ class SearchResult:
 
 
 @njit
-def _heuristic(code, di, dj, dk, resolution, eta):
-    """Heuristic h [m] for absolute index differences (di, dj, dk) to the goal."""
+def _octile_cells(di, dj, dk):
+    """Obstacle-free 26-connected distance [cells] for absolute index differences."""
+    # Sort so that d1 >= d2 >= d3: move diagonally in 3D d3 times, in 2D d2 - d3 times and
+    # straight d1 - d2 times.
+    d1, d2, d3 = di, dj, dk
+    if d1 < d2:
+        d1, d2 = d2, d1
+    if d2 < d3:
+        d2, d3 = d3, d2
+    if d1 < d2:
+        d1, d2 = d2, d1
+    return _SQRT3 * d3 + _SQRT2 * (d2 - d3) + (d1 - d2)
+
+
+@njit
+def _energy_octile(di, dj, dk, omega_up, omega_down):
+    """Lower bound of the energy-aware cost [cells] (module notes): ``di, dj`` absolute,
+    ``dk`` signed (goal minus node, > 0: the goal is above)."""
+    v = abs(dk)
+    omega = omega_up if dk > 0 else omega_down
+    best = _octile_cells(di, dj, v) + omega * v
+    pair = omega_up + omega_down
+    if pair < _SAWTOOTH_PAYS:
+        for m in (di, dj):
+            if m > v:
+                best = min(best, _octile_cells(di, dj, m) + omega * v + 0.5 * pair * (m - v))
+    return best
+
+
+@njit
+def _heuristic(code, di, dj, dk, resolution, eta, weight, omega_up=0.0, omega_down=0.0,
+               kappa=1.0):
+    """Heuristic h [m] for absolute index differences (di, dj) to the goal and the vertical one
+    dk, signed (goal minus node; its sign only matters with climb and descent weights).
+
+    ``omega_up``, ``omega_down`` are the climb and descent weights minus 1 and ``kappa`` the
+    scale of the Euclidean heuristic (module notes); the defaults give the length heuristics.
+    """
     if code == _H_ZERO:
         return 0.0
-    if code == _H_OCTILE:
-        # Sort so that d1 >= d2 >= d3: move diagonally in 3D d3 times, in 2D d2 - d3 times and
-        # straight d1 - d2 times.
-        d1, d2, d3 = di, dj, dk
-        if d1 < d2:
-            d1, d2 = d2, d1
-        if d2 < d3:
-            d2, d3 = d3, d2
-        if d1 < d2:
-            d1, d2 = d2, d1
-        return resolution * (_SQRT3 * d3 + _SQRT2 * (d2 - d3) + (d1 - d2))
-    euclidean = resolution * math.sqrt(di * di + dj * dj + dk * dk)
-    if code == _H_ADAPTIVE and euclidean > eta:
-        return resolution * (di + dj + dk)
-    return euclidean
+    if code == _H_OCTILE or code == _H_WEIGHTED:
+        octile = resolution * _energy_octile(di, dj, dk, omega_up, omega_down)
+        return octile * weight if code == _H_WEIGHTED else octile
+    vertical = abs(dk)
+    euclidean = resolution * math.sqrt(di * di + dj * dj + vertical * vertical)
+    if code == _H_ADAPTIVE:
+        if euclidean > eta:
+            return resolution * (di + dj + vertical)
+        return euclidean
+    return euclidean * kappa
 
 
 @njit
@@ -229,8 +339,12 @@ def _expand(blocked, node_g, node_int, parent, heap_node, heap_key, directions, 
     gi = state[_S_GI]
     gj = state[_S_GJ]
     gk = state[_S_GK]
-    resolution = params[0]
-    eta = params[1]
+    resolution = params[_P_RESOLUTION]
+    eta = params[_P_ETA]
+    weight = params[_P_WEIGHT]
+    omega_up = params[_P_OMEGA_UP]
+    omega_down = params[_P_OMEGA_DOWN]
+    kappa = params[_P_KAPPA]
     nyz = ny * nz
     pops = 0
     status = _PAUSED
@@ -270,7 +384,8 @@ def _expand(blocked, node_g, node_int, parent, heap_node, heap_key, directions, 
                 node_int[4 * neighbour + _STAMP_SLOT] = generation
                 node_g[2 * neighbour] = g_new
                 parent[neighbour] = d
-                h = _heuristic(code, abs(ni - gi), abs(nj - gj), abs(nk - gk), resolution, eta)
+                h = _heuristic(code, abs(ni - gi), abs(nj - gj), gk - nk, resolution, eta,
+                               weight, omega_up, omega_down, kappa)
                 _sift_up(heap_node, heap_key, node_int, size, neighbour, g_new + h, h)
                 size += 1
             else:
@@ -342,16 +457,16 @@ class SearchWorkspace:
         self._delta = _DIRECTIONS @ strides
         # Large np.zeros / np.empty arrays are fresh zero pages: memory is only committed where
         # a search touches it. Zeroed records carry stamp 0, which no query uses.
-        self._node_g = np.zeros(2 * size, dtype=np.float64)
+        self._node_g = _lazy_zeros(2 * size, np.float64)
         self._node_int = self._node_g.view(np.int32)
-        self._parent = np.empty(size, dtype=np.int8)
+        self._parent = _lazy_zeros(size, np.int8)
         # The heap holds each node at most once, so `size` entries always suffice; an entry is
         # a node number and its key (f, h).
-        self._heap_node = np.empty(size, dtype=np.int32)
-        self._heap_key = np.empty(2 * size, dtype=np.float64)
+        self._heap_node = _lazy_zeros(size, np.int32)
+        self._heap_key = _lazy_zeros(2 * size, np.float64)
         self._state = np.zeros(_STATE_SIZE, dtype=np.int64)
         self._state[_S_NX:_S_NZ + 1] = self.shape
-        self._params = np.zeros(2, dtype=np.float64)
+        self._params = np.zeros(_PARAMS_SIZE, dtype=np.float64)
         self._generation = 0
         self._lock = threading.Lock()
 
@@ -390,7 +505,9 @@ class SearchWorkspace:
 
     def search(self, start_index, goal_index, algorithm: str, resolution: float,
                adaptive_threshold: float, max_expansions: int = 0,
-               max_time_s: float = 0.0) -> SearchResult:
+               max_time_s: float = 0.0, *, weight: float = DEFAULT_WEIGHT,
+               climb_weight: float = 1.0, descent_weight: float = 1.0,
+               checkpoint: Optional[Callable[[], None]] = None) -> SearchResult:
         """Find a path between two free nodes.
 
         Parameters
@@ -407,6 +524,16 @@ class SearchWorkspace:
             Budget of expanded nodes; 0 means unlimited.
         max_time_s : float
             Budget of wall-clock time [s], checked every 20000 expansions; 0 means unlimited.
+        weight : float
+            Suboptimality bound w >= 1 of ``weighted`` (ignored by the others).
+        climb_weight, descent_weight : float
+            Energy-aware step cost [-], each >= 0: a step costs its length plus (weight - 1)
+            times its vertical length (module notes); 1 and 1 give lengths.
+        checkpoint : callable, optional
+            Called every 20000 expansions (a few milliseconds); it raises a
+            :class:`~uav_global_planner.core.errors.PlanningError` to stop the search (a
+            cancelled request, a plan-wide time budget), which is re-raised with the number of
+            expanded nodes.
 
         Returns
         -------
@@ -438,6 +565,11 @@ class SearchWorkspace:
             raise InvalidInputError(
                 f'max_expansions must be an integer >= 0, got {max_expansions!r}')
         budget_n = int(max_expansions)
+        w = _checked_float('weight', weight, positive=True)
+        if w < 1.0:
+            raise InvalidInputError(f'weight must be >= 1, got {w}')
+        climb = _checked_float('climb_weight', climb_weight, positive=False)
+        descent = _checked_float('descent_weight', descent_weight, positive=False)
 
         with self._lock:
             if self._flat_blocked[start]:
@@ -445,11 +577,11 @@ class SearchWorkspace:
             if self._flat_blocked[goal]:
                 raise GoalOccupiedError(f'goal node {self._unravel(goal)} is blocked')
             began = time.perf_counter()
-            self._begin(start, goal, code, delta_m, eta)
-            step_cost = delta_m * _STEP_LENGTH
+            self._begin(start, goal, code, delta_m, eta, w, climb, descent)
+            step_cost = delta_m * (_STEP_LENGTH + (climb - 1.0) * _UP + (descent - 1.0) * _DOWN)
             state = self._state
             while True:
-                if budget_s > 0.0:
+                if budget_s > 0.0 or checkpoint is not None:
                     pops = _CHUNK
                 else:
                     pops = _MAX_NODES
@@ -465,6 +597,12 @@ class SearchWorkspace:
                     raise NoValidPathError(
                         f'no path from start to goal: all {expanded} nodes reachable from the '
                         'start were expanded', expanded_nodes=expanded)
+                if checkpoint is not None:
+                    try:
+                        checkpoint()
+                    except PlanningError as error:
+                        error.expanded_nodes = expanded
+                        raise
                 elapsed = time.perf_counter() - began
                 if budget_n > 0 and expanded >= budget_n:
                     raise PlanningTimeoutError(
@@ -482,7 +620,8 @@ class SearchWorkspace:
         return SearchResult(path_indices=path, cost_m=cost, expanded_nodes=expanded,
                             search_time_s=elapsed)
 
-    def _begin(self, start: int, goal: int, code: int, resolution: float, eta: float) -> None:
+    def _begin(self, start: int, goal: int, code: int, resolution: float, eta: float,
+               weight: float, climb: float = 1.0, descent: float = 1.0) -> None:
         """Start a new generation and put the start node on the open list."""
         self._generation += 1
         if self._generation > _MAX_GENERATION:
@@ -491,7 +630,15 @@ class SearchWorkspace:
             self._generation = 1
         gi, gj, gk = self._unravel(goal)
         si, sj, sk = self._unravel(start)
-        h = float(_heuristic(code, abs(si - gi), abs(sj - gj), abs(sk - gk), resolution, eta))
+        params = self._params
+        params[_P_RESOLUTION] = resolution
+        params[_P_ETA] = eta
+        params[_P_WEIGHT] = weight
+        params[_P_OMEGA_UP] = climb - 1.0
+        params[_P_OMEGA_DOWN] = descent - 1.0
+        params[_P_KAPPA] = min(1.0, climb, descent)
+        h = float(_heuristic(code, abs(si - gi), abs(sj - gj), gk - sk, resolution, eta,
+                             weight, climb - 1.0, descent - 1.0, params[_P_KAPPA]))
         state = self._state
         state[_S_GEN] = self._generation
         state[_S_SIZE] = 1
@@ -499,8 +646,6 @@ class SearchWorkspace:
         state[_S_GOAL] = goal
         state[_S_CODE] = code
         state[_S_GI:_S_GK + 1] = (gi, gj, gk)
-        self._params[0] = resolution
-        self._params[1] = eta
         self._node_g[2 * start] = 0.0
         self._node_int[4 * start + _STAMP_SLOT] = self._generation
         self._node_int[4 * start + _HEAP_SLOT] = 0
@@ -513,6 +658,22 @@ class SearchWorkspace:
         """(i, j, k) of a flat node number, as Python ints."""
         _, ny, nz = self.shape
         return [node // (ny * nz), node // nz % ny, node % nz]
+
+
+def _lazy_zeros(count: int, dtype) -> np.ndarray:
+    """A zeroed array whose memory is committed page by page as it is first written.
+
+    Large arrays come from an anonymous memory map advised against transparent huge pages:
+    numpy's own allocator asks for huge pages, so the first touch of a node record would commit
+    2 MiB instead of 4 KiB, and a first search on a 100 M-node grid spent seconds committing
+    gigabytes it never used.
+    """
+    nbytes = int(count) * np.dtype(dtype).itemsize
+    if nbytes < _LAZY_BYTES or not hasattr(mmap, 'MADV_NOHUGEPAGE'):
+        return np.zeros(count, dtype=dtype)
+    region = mmap.mmap(-1, nbytes)
+    region.madvise(mmap.MADV_NOHUGEPAGE)
+    return np.frombuffer(region, dtype=dtype, count=count)
 
 
 def _checked_grid(blocked) -> np.ndarray:
@@ -541,11 +702,14 @@ def _checked_float(name: str, value, positive: bool) -> float:
 
 def search(blocked: np.ndarray, start_index, goal_index, algorithm: str, resolution: float,
            adaptive_threshold: float, max_expansions: int = 0,
-           max_time_s: float = 0.0) -> SearchResult:
+           max_time_s: float = 0.0, *, weight: float = DEFAULT_WEIGHT,
+           climb_weight: float = 1.0, descent_weight: float = 1.0) -> SearchResult:
     """One-off search on a fresh :class:`SearchWorkspace`; see :meth:`SearchWorkspace.search`.
 
     Prefer a workspace kept alive between queries on the same grid: this allocates (lazily) the
     per-node arrays each call.
     """
     return SearchWorkspace(blocked).search(start_index, goal_index, algorithm, resolution,
-                                           adaptive_threshold, max_expansions, max_time_s)
+                                           adaptive_threshold, max_expansions, max_time_s,
+                                           weight=weight, climb_weight=climb_weight,
+                                           descent_weight=descent_weight)

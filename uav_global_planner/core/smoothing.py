@@ -83,25 +83,27 @@ exactly as well: the extrema of each cubic piece are found analytically.
 
 from dataclasses import dataclass
 import math
-from typing import List, Optional, Tuple
+from typing import Callable, List, Optional, Sequence, Tuple
 
 import numpy as np
 from scipy.interpolate import CubicSpline
 
+from uav_global_planner.core.clearance import (Certificate, certificate_cap, certify_pieces,
+                                               check_margins,
+                                               CHECK_SPACING_FRACTION, FINEST_SPACING_FRACTION,
+                                               Pieces, SampleGrid, SEGMENT_SPACING,
+                                               segments_clear)
 from uav_global_planner.core.config import SMOOTHING_MODES
 from uav_global_planner.core.errors import InvalidInputError, NoValidPathError
 from uav_global_planner.core.grid import as_point, positive_number
 from uav_global_planner.core.obstacles import ObstacleSet
 from uav_global_planner.core.result import polyline_length, RepairedStretch
 
-#: Coarsest verification sampling of the smoothed curve, as a fraction of delta (delta / 20).
-CHECK_SPACING_FRACTION = 1.0 / 20.0
-#: Finest subdivision of the clearance certificate, as a fraction of delta.
-FINEST_SPACING_FRACTION = 1e-5
-#: First sampling of shortcut candidate segments [m]. The certificate refines it wherever needed,
-#: so this only trades distance evaluations far from obstacles against refinement rounds; it is
-#: absolute because the work it saves scales with obstacle sizes, not with delta.
-SHORTCUT_SPACING = 0.25
+#: First sampling of shortcut candidate segments [m] (the engine's segment spacing).
+SHORTCUT_SPACING = SEGMENT_SPACING
+#: A shortcut past the next node must keep gamma plus this many delta: it bounds the work of
+#: certifying a jump to (length / slack) intervals where the farthest visible node grazes.
+SHORTCUT_SLACK_FRACTION = 0.02
 #: Default largest knot spacing of ``'chord'`` splines along the shortcut polyline: this many
 #: delta, but at least :data:`DEFAULT_KNOT_SPACING_MIN`. It sets how widely corners are rounded:
 #: wider means lower curvature and faster flight, but more bulging and repairs.
@@ -119,224 +121,18 @@ _DUPLICATE_TOLERANCE = 1e-9
 _BOUNDS_TOLERANCE = 1e-9
 # Junctions whose tangents differ by less than this (1 - cos of the angle) are smooth.
 _SMOOTH_JUNCTION = 1e-12
+# Output samples closer than this to a via-point are dropped in its favour [m].
+_VIA_SAMPLE_GAP = 1e-6
+# Up to this many nodes ahead are all certified in one batch (exact farthest visible).
+_SHORTCUT_BATCH = 64
+# Nodes this close ahead are all certified in the first batch of a long path.
+_SHORTCUT_NEAR = 16
+# Powers of two certified per batch when galloping ahead.
+_GALLOP_BATCH = 4
+# Nodes certified per narrowing round of the shortcut search (one batch each).
+_SHORTCUT_PROBES = 8
 # Upper bound on repair rounds; each round halves knot gaps or straightens polyline gaps.
 _MAX_REPAIR_ROUNDS = 200
-# Most children an interval is cut into per refinement round of the certificate.
-_MAX_SUBDIVISION = 32
-# Gauss-Legendre rule for arc lengths: exact to rounding on the short verification intervals
-# (the error term scales with the tenth power of the length). Every arc length is integrated with
-# it from a verification sample, so labels agree bit for bit where intervals meet.
-_GAUSS = {5: np.polynomial.legendre.leggauss(5)}
-
-
-@dataclass(frozen=True, eq=False)
-class _Pieces:
-    """Chain of cubic pieces ``p(tau) = c0 tau^3 + c1 tau^2 + c2 tau + c3``, ``tau in [0, h]``.
-
-    Attributes
-    ----------
-    coef : numpy.ndarray, shape (4, P, 3)
-        Coefficients, highest power first (the layout of ``CubicSpline.c``) [m / unit^k].
-    h : numpy.ndarray, shape (P,)
-        Parameter length of each piece [parameter units].
-    """
-
-    coef: np.ndarray
-    h: np.ndarray
-    linear: bool = False    # every piece straight: c0 = c1 = 0
-
-    def __len__(self) -> int:
-        return len(self.h)
-
-    def position(self, piece: np.ndarray, tau: np.ndarray) -> np.ndarray:
-        if self.linear:
-            return self.coef[3, piece] + tau[:, None] * self.coef[2, piece]
-        c = self.coef[:, piece, :]
-        x = tau[:, None]
-        return ((c[0] * x + c[1]) * x + c[2]) * x + c[3]
-
-    def first(self, piece: np.ndarray, tau: np.ndarray) -> np.ndarray:
-        c = self.coef[:, piece, :]
-        x = tau[:, None]
-        return (3.0 * c[0] * x + 2.0 * c[1]) * x + c[2]
-
-    def second(self, piece: np.ndarray, tau: np.ndarray) -> np.ndarray:
-        c = self.coef[:, piece, :]
-        return 6.0 * c[0] * tau[:, None] + 2.0 * c[1]
-
-    def speed_integral(self, piece: np.ndarray, tau0: np.ndarray, tau1: np.ndarray,
-                       order: int = 5) -> np.ndarray:
-        """Arc length from ``tau0`` to ``tau1`` on each piece [m] (Gauss-Legendre rule)."""
-        nodes, weights = _GAUSS[order]
-        half = 0.5 * (tau1 - tau0)
-        mid = 0.5 * (tau1 + tau0)
-        at = (mid[:, None] + half[:, None] * nodes[None, :]).ravel()
-        d1 = self.first(np.repeat(piece, order), at)
-        speed = np.sqrt(np.einsum('ij,ij->i', d1, d1)).reshape(-1, order)
-        return half * (speed @ weights)
-
-
-def _line_pieces(p0: np.ndarray, p1: np.ndarray) -> _Pieces:
-    """Straight segments ``p0 -> p1`` as cubic pieces over ``tau in [0, 1]``."""
-    coef = np.zeros((4, len(p0), 3))
-    coef[2] = p1 - p0
-    coef[3] = p0
-    return _Pieces(coef, np.ones(len(p0)), linear=True)
-
-
-@dataclass
-class _Certificate:
-    """Outcome of :func:`_certify`, per piece and overall."""
-
-    violated: np.ndarray          # (P,) bool: bound below gamma somewhere on the piece
-    certified: np.ndarray         # (P,) smallest certified lower bound on accepted intervals [m]
-    piece_min: Optional[np.ndarray] = None     # (P,) smallest sampled clearance [m]
-    piece_worst: Optional[np.ndarray] = None   # (P, 3) where it was sampled [m]
-    min_clearance: float = math.inf            # smallest sampled clearance overall [m]
-    min_point: Optional[np.ndarray] = None     # (3,) where [m]
-
-
-def _certify(pieces: _Pieces, piece: np.ndarray, tau: np.ndarray, pos: np.ndarray,
-             curv: Optional[np.ndarray], dist: np.ndarray, first: np.ndarray,
-             obstacles: ObstacleSet, gamma: float, finest: float,
-             skip: Optional[np.ndarray] = None, stats: bool = True) -> _Certificate:
-    """Certify clearance >= gamma on every interval between consecutive samples of a piece.
-
-    Parameters
-    ----------
-    pieces : _Pieces
-    piece, tau : numpy.ndarray, shape (G,)
-        Samples, sorted by piece then tau; each piece's first and last sample are its ends.
-    pos, dist : numpy.ndarray, shapes (G, 3) and (G,)
-        Position [m] and clearance [m] of each sample.
-    curv : numpy.ndarray, shape (G,), or None
-        ``|c''|`` at each sample [m / unit^2]; None for straight pieces.
-    first : numpy.ndarray of bool, shape (G,)
-        True where a sample starts an interval (every sample but a piece's last).
-    gamma : float
-        Required clearance [m].
-    finest : float
-        Intervals whose spatial size (chord plus twice the bend bound) is below this [m] are not
-        subdivided further: if their bound is still below gamma the piece is violated.
-    skip : numpy.ndarray of bool, shape (P,), optional
-        Pieces already certified elsewhere: sampled for the statistics only.
-    stats : bool
-        Also report the smallest sampled clearances (per piece and overall) and where.
-
-    Notes
-    -----
-    Each round evaluates every new sample in a single ``ObstacleSet.distance`` call. A sample
-    below gamma, or touching an obstacle (d = 0 is also every point inside one, which matters
-    for gamma = 0), is a definite violation that no refinement can help.
-    """
-    count = len(pieces)
-    certified = np.full(count, np.inf)
-    bad_sample = (dist < gamma) | (dist <= 0.0)
-    violated = np.zeros(count, dtype=bool)
-    violated[piece[bad_sample]] = True
-    samples = [(piece, dist, pos)] if stats else []
-    ia = np.flatnonzero(first)
-    live = ~violated[piece[ia]]
-    if skip is not None:
-        live &= ~skip[piece[ia]]
-    ia = ia[live]
-    ib = ia + 1
-    p, ta, tb, pa, pb, da, db = piece[ia], tau[ia], tau[ib], pos[ia], pos[ib], dist[ia], dist[ib]
-    ka = kb = None
-    if curv is not None:
-        ka, kb = curv[ia], curv[ib]
-    while len(p):
-        chord = np.sqrt(np.einsum('ij,ij->i', pb - pa, pb - pa))
-        size = chord
-        bound = 0.5 * (da + db - chord)
-        if ka is not None:
-            bend = (tb - ta) ** 2 / 8.0 * np.maximum(ka, kb)
-            bound -= bend
-            size = chord + 2.0 * bend
-        ok = bound >= gamma
-        np.minimum.at(certified, p[ok], bound[ok])
-        violated[p[~ok & (size <= finest)]] = True
-        refine = np.flatnonzero(~ok & ~violated[p])
-        if not len(refine):
-            break
-        # Cut so that the children's chords fit the slack left by the end clearances; a tangent
-        # approach (slack -> 0) gets the maximum cut and converges geometrically.
-        slack = da[refine] + db[refine] - 2.0 * gamma
-        with np.errstate(divide='ignore', invalid='ignore'):
-            parts = np.ceil(size[refine] / slack)
-        parts = np.where(np.isfinite(parts) & (slack > 0), parts, _MAX_SUBDIVISION)
-        parts = np.clip(parts, 2, _MAX_SUBDIVISION).astype(np.int64)
-        # Nodes of the subdivision: parts + 1 per interval, ends copied, interior evaluated.
-        group = np.repeat(np.arange(len(refine)), parts + 1)
-        local = np.arange(len(group)) - (np.cumsum(parts + 1) - (parts + 1))[group]
-        total = parts[group]
-        src = refine[group]
-        node_tau = ta[src] + (tb[src] - ta[src]) * (local / total)
-        node_piece = p[src]
-        head = local == 0
-        inner = ~head & (local < total)
-        node_pos = np.where(head[:, None], pa[src], pb[src])
-        node_dist = np.where(head, da[src], db[src])
-        ip, it = node_piece[inner], node_tau[inner]
-        new_pos = pieces.position(ip, it)
-        new_dist = obstacles.distance(new_pos)
-        node_pos[inner] = new_pos
-        node_dist[inner] = new_dist
-        if stats:
-            samples.append((ip, new_dist, new_pos))
-        violated[ip[(new_dist < gamma) | (new_dist <= 0.0)]] = True
-        keep = (local < total) & ~violated[node_piece]
-        a = np.flatnonzero(keep)
-        b = a + 1
-        p, ta, tb = node_piece[a], node_tau[a], node_tau[b]
-        pa, pb, da, db = node_pos[a], node_pos[b], node_dist[a], node_dist[b]
-        if ka is not None:
-            node_curv = np.where(head, ka[src], kb[src])
-            node_curv[inner] = np.linalg.norm(pieces.second(ip, it), axis=1)
-            ka, kb = node_curv[a], node_curv[b]
-    if skip is not None:
-        violated &= ~skip
-    cert = _Certificate(violated, certified)
-    if stats:
-        all_piece = np.concatenate([x[0] for x in samples])
-        all_dist = np.concatenate([x[1] for x in samples])
-        all_pos = np.concatenate([x[2] for x in samples])
-        order = np.lexsort((all_dist, all_piece))
-        firsts = order[np.r_[True, all_piece[order][1:] != all_piece[order][:-1]]]
-        cert.piece_min = np.full(count, np.inf)
-        cert.piece_worst = np.full((count, 3), np.nan)
-        cert.piece_min[all_piece[firsts]] = all_dist[firsts]
-        cert.piece_worst[all_piece[firsts]] = all_pos[firsts]
-        best = int(np.argmin(all_dist))
-        cert.min_clearance = float(all_dist[best])
-        cert.min_point = all_pos[best].copy()
-    return cert
-
-
-def _segments_clear(p0: np.ndarray, p1: np.ndarray, obstacles: ObstacleSet, gamma: float,
-                    spacing: float, finest: float) -> Tuple[np.ndarray, np.ndarray]:
-    """Certify straight segments ``p0[i] -> p1[i]`` in one batch.
-
-    Returns
-    -------
-    clear : numpy.ndarray of bool, shape (C,)
-        True where clearance >= gamma is certified on the whole segment.
-    bound : numpy.ndarray, shape (C,)
-        Certified lower bound on the clearance of each clear segment [m].
-    """
-    pieces = _line_pieces(p0, p1)
-    lengths = np.linalg.norm(p1 - p0, axis=1)
-    counts = np.maximum(np.ceil(lengths / spacing), 1).astype(np.int64)
-    piece = np.repeat(np.arange(len(p0)), counts + 1)
-    offsets = np.cumsum(counts + 1) - (counts + 1)
-    local = np.arange(len(piece)) - offsets[piece]
-    tau = local / counts[piece]
-    pos = pieces.position(piece, tau)
-    dist = obstacles.distance(pos)
-    first = local < counts[piece]
-    cert = _certify(pieces, piece, tau, pos, None, dist, first, obstacles, gamma, finest,
-                    stats=False)
-    return ~cert.violated, cert.certified
 
 
 def _dedupe(path: np.ndarray) -> np.ndarray:
@@ -352,10 +148,95 @@ def _dedupe(path: np.ndarray) -> np.ndarray:
     return out
 
 
+def _far_visible(path: np.ndarray, anchor: int, obstacles: ObstacleSet, gamma: float,
+                 spacing: float, finest: float,
+                 checkpoint: Optional[Callable[[], None]] = None) -> Tuple[int, float]:
+    """A far node visible from ``path[anchor]``, with its segment's certified bound.
+
+    With at most :data:`_SHORTCUT_BATCH` nodes ahead, all are certified in one batch and the
+    farthest visible wins. Otherwise node offsets 1, 2, 4, ... (and the last node) are certified
+    a few at a time, going farther while the farthest so far is visible; between the
+    farthest visible one and the next, up to :data:`_SHORTCUT_PROBES` evenly spaced nodes are
+    certified per round until two neighbours are left. Work and memory are bounded by a few
+    times the length of the jump found, not by the number of nodes ahead (visibility along a
+    path is not monotone, so this finds a far visible node, not always the farthest).
+
+    Returns
+    -------
+    tuple of (int, float)
+        The node's index, or ``anchor`` when not even the next node is visible; and the bound
+        [m] (-inf then).
+    """
+    n = len(path)
+    ahead = n - 1 - anchor
+    slack = SHORTCUT_SLACK_FRACTION * finest / FINEST_SPACING_FRACTION
+    if ahead <= _SHORTCUT_BATCH:
+        # Few nodes ahead: certify them all at once and take the farthest visible.
+        offsets = np.arange(1, ahead + 1)
+    else:
+        # Every near node (most jumps of a winding path end there, found in one batch), then
+        # powers of two.
+        offsets = np.unique(np.r_[np.arange(1, _SHORTCUT_NEAR + 1),
+                                  2 ** np.arange(int(math.log2(ahead)) + 1), ahead])
+
+    def visible(offs: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+        ends = path[anchor + offs]
+        starts = np.repeat(path[anchor][None, :], len(offs), axis=0)
+        # A jump past the next node must clear gamma with some slack: the farthest visible
+        # node is by nature a grazing one, and certifying a segment that grazes the margin by
+        # a micrometre takes (length / micrometre) intervals. The next node is checked
+        # against gamma itself, as before.
+        clear, bound = segments_clear(starts, ends, obstacles, gamma + slack, spacing, finest,
+                                      checkpoint)
+        next_node = offs == 1
+        if next_node.any() and not clear[next_node].all():
+            clear[next_node], bound[next_node] = segments_clear(
+                starts[next_node], ends[next_node], obstacles, gamma, spacing, finest,
+                checkpoint)
+        return clear, bound
+
+    # Offsets in batches of a few powers of two, farther only while the farthest so far is
+    # visible: the work follows the jump found, not the length of the path ahead.
+    clear = np.zeros(len(offsets), dtype=bool)
+    bound = np.full(len(offsets), -math.inf)
+    first = 0
+    while first < len(offsets):
+        if ahead <= _SHORTCUT_BATCH:
+            last = len(offsets)
+        elif first == 0:
+            last = min(_SHORTCUT_NEAR + _GALLOP_BATCH, len(offsets))
+        else:
+            last = min(first + _GALLOP_BATCH, len(offsets))
+        clear[first:last], bound[first:last] = visible(offsets[first:last])
+        if not clear[last - 1]:
+            break
+        first = last
+    seen = np.flatnonzero(clear)
+    if not len(seen):
+        return anchor, -math.inf
+    k = int(seen[-1])
+    lo, lo_bound = int(offsets[k]), float(bound[k])
+    hi = int(offsets[k + 1]) if k + 1 < len(offsets) else lo
+    while hi - lo > 1:
+        probes = np.unique(np.linspace(lo, hi, _SHORTCUT_PROBES + 2).astype(np.int64)[1:-1])
+        probes = probes[(probes > lo) & (probes < hi)]
+        clear, bound = visible(probes)
+        seen = np.flatnonzero(clear)
+        if len(seen):
+            k = int(seen[-1])
+            lo, lo_bound = int(probes[k]), float(bound[k])
+            later = probes[k + 1:]
+            hi = int(later[0]) if len(later) else hi
+        else:
+            hi = int(probes[0])
+    return anchor + lo, lo_bound
+
+
 def _shortcut(path: np.ndarray, obstacles: ObstacleSet, gamma: float, delta: float,
-              box: Optional[Tuple[np.ndarray, np.ndarray]] = None
+              box: Optional[Tuple[np.ndarray, np.ndarray]] = None,
+              checkpoint: Optional[Callable[[], None]] = None
               ) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Greedy farthest-visible shortcutting, with detours around raw edges that dip below gamma.
+    """Greedy far-visible shortcutting, with detours around raw edges that dip below gamma.
 
     Returns
     -------
@@ -378,15 +259,14 @@ def _shortcut(path: np.ndarray, obstacles: ObstacleSet, gamma: float, delta: flo
     spacing = SHORTCUT_SPACING
     finest = delta * FINEST_SPACING_FRACTION
     while anchor < n - 1:
-        candidates = np.arange(anchor + 1, n)
-        clear, bound = _segments_clear(np.repeat(path[anchor][None, :], len(candidates), axis=0),
-                                       path[candidates], obstacles, gamma, spacing, finest)
-        visible = np.flatnonzero(clear)
-        if len(visible):
-            best = visible[-1]
+        if checkpoint is not None:
+            checkpoint()
+        best, best_bound = _far_visible(path, anchor, obstacles, gamma, spacing, finest,
+                                        checkpoint)
+        if best > anchor:
             certified.append(True)
-            bounds.append(float(bound[best]))
-            anchor = int(candidates[best])
+            bounds.append(best_bound)
+            anchor = best
         else:
             detour = _detour(path[anchor], path[anchor + 1], obstacles, gamma, delta, box)
             if detour is None:
@@ -419,12 +299,14 @@ def _detour(a: np.ndarray, b: np.ndarray, obstacles: ObstacleSet, gamma: float, 
     length = float(np.linalg.norm(b - a))
     count = max(int(math.ceil(length / step)), 2)
     samples = a + np.linspace(0.0, 1.0, count + 1)[:, None] * (b - a)
-    clearance = obstacles.distance(samples)
+    # Capped: exact wherever it is near gamma, which is all the detour looks at.
+    cap = certificate_cap(gamma, step)
+    clearance = obstacles.distance(samples, cap)
     worst = samples[int(np.argmin(clearance))]
     deficit = gamma - float(np.min(clearance))
     probe = 1e-4 * delta
     offsets = np.vstack([np.eye(3), -np.eye(3)]) * probe
-    around = obstacles.distance(worst + offsets)
+    around = obstacles.distance(worst + offsets, cap)
     gradient = (around[:3] - around[3:]) / (2.0 * probe)
     direction = (b - a) / length
     gradient -= np.dot(gradient, direction) * direction
@@ -439,13 +321,53 @@ def _detour(a: np.ndarray, b: np.ndarray, obstacles: ObstacleSet, gamma: float, 
         return None
     starts = np.vstack([np.repeat(a[None, :], len(middles), axis=0), middles])
     ends = np.vstack([middles, np.repeat(b[None, :], len(middles), axis=0)])
-    clear, bound = _segments_clear(starts, ends, obstacles, gamma, SHORTCUT_SPACING,
-                                   delta * FINEST_SPACING_FRACTION)
+    clear, bound = segments_clear(starts, ends, obstacles, gamma, SHORTCUT_SPACING,
+                                  delta * FINEST_SPACING_FRACTION)
     both = np.flatnonzero(clear[:len(middles)] & clear[len(middles):])
     if not len(both):
         return None
     k = int(both[0])
     return middles[k], float(bound[k]), float(bound[len(middles) + k])
+
+
+def _kept_indices(points: np.ndarray, path: np.ndarray, keep: Sequence[int]) -> np.ndarray:
+    """``keep`` (indices of ``points``) as indices of the deduplicated ``path``."""
+    if not len(keep):
+        return np.zeros(0, dtype=np.int64)
+    wanted = np.asarray(keep, dtype=np.int64)
+    if np.any((wanted < 0) | (wanted >= len(points))):
+        raise InvalidInputError(f'keep indices must lie in [0, {len(points) - 1}], got '
+                                f'{wanted.tolist()}')
+    # _dedupe keeps the first of each run of equal waypoints (and the exact last point).
+    step = np.linalg.norm(np.diff(points, axis=0), axis=1)
+    new_index = np.cumsum(np.r_[True, step > _DUPLICATE_TOLERANCE]) - 1
+    return np.unique(np.clip(new_index[wanted], 0, len(path) - 1))
+
+
+def _vertex_indices(vertices: np.ndarray, path: np.ndarray, kept: np.ndarray) -> np.ndarray:
+    """Indices in ``vertices`` of the ``path`` waypoints ``kept`` (which shortcutting keeps)."""
+    if not len(kept):
+        return np.zeros(0, dtype=np.int64)
+    hits = [np.flatnonzero(np.all(vertices == path[k], axis=1)) for k in kept]
+    return np.asarray([int(h[0]) for h in hits if len(h)], dtype=np.int64)
+
+
+def _shortcut_legs(path: np.ndarray, keep: np.ndarray, obstacles: ObstacleSet, gamma: float,
+                   delta: float, box: Optional[Tuple[np.ndarray, np.ndarray]],
+                   checkpoint: Optional[Callable[[], None]]
+                   ) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`_shortcut` on each stretch between kept waypoints, joined at them."""
+    cuts = np.unique(np.r_[0, keep, len(path) - 1])
+    vertices: List[np.ndarray] = []
+    certified: List[np.ndarray] = []
+    bounds: List[np.ndarray] = []
+    for a, b in zip(cuts[:-1], cuts[1:]):
+        leg_vertices, leg_certified, leg_bound = _shortcut(path[a:b + 1], obstacles, gamma,
+                                                           delta, box, checkpoint)
+        vertices.append(leg_vertices if not vertices else leg_vertices[1:])
+        certified.append(leg_certified)
+        bounds.append(leg_bound)
+    return np.vstack(vertices), np.concatenate(certified), np.concatenate(bounds)
 
 
 def shortcut_path(path, obstacles: ObstacleSet, safety_margin: float,
@@ -477,7 +399,7 @@ def shortcut_path(path, obstacles: ObstacleSet, safety_margin: float,
         points; consecutive duplicates are dropped.
     """
     points = _as_path(path)
-    gamma, delta = _check_margins(safety_margin, resolution)
+    gamma, delta = check_margins(safety_margin, resolution, 'safety_margin')
     points = _dedupe(points)
     if len(points) < 3:
         return points.copy()
@@ -499,7 +421,7 @@ class PathCurve:
         the time parameterisation stops, start and goal included [m].
     """
 
-    def __init__(self, pieces: _Pieces, iv_piece: np.ndarray, iv_ta: np.ndarray,
+    def __init__(self, pieces: Pieces, iv_piece: np.ndarray, iv_ta: np.ndarray,
                  iv_tb: np.ndarray, iv_sa: np.ndarray, iv_sb: np.ndarray,
                  piece_start_m: np.ndarray, stop_arc_length_m: np.ndarray) -> None:
         self._pieces = pieces
@@ -528,6 +450,14 @@ class PathCurve:
             if np.all(np.abs(correction) * speed <= 1e-13 * max(self.length_m, 1.0)):
                 break
         return piece, tau
+
+    def pieces_after(self, s: float) -> Pieces:
+        """The cubic pieces that reach beyond arc length ``s`` [m] (all of them for s <= 0)."""
+        keep = np.flatnonzero(self.piece_start_m[1:] >= s)
+        if not len(keep):
+            keep = np.array([len(self.piece_start_m) - 2])
+        return Pieces(self._pieces.coef[:, keep, :], self._pieces.h[keep],
+                      linear=self._pieces.linear)
 
     def evaluate(self, s) -> np.ndarray:
         """Points of the curve at arc lengths ``s`` [m], shape (M, 3).
@@ -642,16 +572,6 @@ def _as_path(path) -> np.ndarray:
     return points
 
 
-def _check_margins(safety_margin: float, resolution: float) -> Tuple[float, float]:
-    gamma = float(safety_margin)
-    delta = float(resolution)
-    if not math.isfinite(gamma) or gamma < 0.0:
-        raise InvalidInputError(f'safety_margin must be a finite number >= 0 m, got {gamma}')
-    if not math.isfinite(delta) or delta <= 0.0:
-        raise InvalidInputError(f'resolution must be a finite number > 0 m, got {delta}')
-    return gamma, delta
-
-
 @dataclass
 class _Layout:
     """Current shape of the curve over the shortcut polyline.
@@ -690,7 +610,7 @@ class _Layout:
 class _Chain:
     """Pieces of the current curve with what the repair needs to know about each."""
 
-    pieces: _Pieces
+    pieces: Pieces
     sig: np.ndarray         # (P, 2) polyline arc length of each piece's end knots [m]
     gap: np.ndarray         # (P,) polyline gap holding the piece
     span: np.ndarray        # (P,) span number (maximal run of spline gaps, or one line gap)
@@ -745,59 +665,13 @@ def _build_chain(layout: _Layout, mode: str) -> _Chain:
             spans.append(np.full(pieces, span))
             gap = end
         span += 1
-    return _Chain(_Pieces(np.concatenate(coefs, axis=1), np.concatenate(hs).astype(np.float64)),
+    return _Chain(Pieces(np.concatenate(coefs, axis=1), np.concatenate(hs).astype(np.float64)),
                   np.concatenate(sigs).astype(np.float64), np.concatenate(gaps).astype(np.int64),
                   np.concatenate(spans).astype(np.int64), np.concatenate(lines).astype(bool),
                   np.concatenate(trusted).astype(bool))
 
 
-@dataclass
-class _Grid:
-    """Verification samples of a chain: every piece from tau = 0 to tau = h."""
-
-    piece: np.ndarray
-    tau: np.ndarray
-    pos: np.ndarray
-    first: np.ndarray       # sample starts an interval
-    s: np.ndarray           # arc length of each sample [m]
-
-
-def _sample_grid(pieces: _Pieces, spacing: float) -> _Grid:
-    """Samples with chords <= ``spacing`` on every piece, and their arc lengths."""
-    count = len(pieces)
-    all_pieces = np.arange(count)
-    # Parameter speed at the ends and at the Gauss nodes of each piece: the sample count follows
-    # the fastest stretch, so the chords fit at once (the loop below is only a safety net).
-    frac = np.r_[0.0, 0.5 * (_GAUSS[5][0] + 1.0), 1.0]
-    d1 = pieces.first(np.repeat(all_pieces, len(frac)), (pieces.h[:, None] * frac).ravel())
-    speed = np.sqrt(np.einsum('ij,ij->i', d1, d1)).reshape(count, len(frac))
-    parts = np.maximum(np.ceil(1.05 * pieces.h * speed.max(axis=1) / spacing), 1)
-    parts = parts.astype(np.int64)
-    for _ in range(8):
-        piece = np.repeat(all_pieces, parts + 1)
-        offsets = np.cumsum(parts + 1) - (parts + 1)
-        local = np.arange(len(piece)) - offsets[piece]
-        tau = pieces.h[piece] * (local / parts[piece])
-        pos = pieces.position(piece, tau)
-        first = local < parts[piece]
-        ia = np.flatnonzero(first)
-        step = pos[ia + 1] - pos[ia]
-        chords = np.sqrt(np.einsum('ij,ij->i', step, step))
-        worst = np.zeros(count)
-        np.maximum.at(worst, piece[ia], chords)
-        coarse = worst > spacing
-        if not coarse.any():
-            break
-        # Uneven parameter speed inside a piece: refine the offending pieces proportionally.
-        parts[coarse] = np.ceil(parts[coarse] * worst[coarse] / spacing * 1.05).astype(np.int64)
-    steps = pieces.speed_integral(piece[ia], tau[ia], tau[ia + 1])
-    # Each piece's first sample repeats the previous piece's last one: same arc length.
-    increments = np.zeros(len(piece))
-    increments[ia + 1] = steps
-    return _Grid(piece, tau, pos, first, np.cumsum(increments))
-
-
-def _bounds_violations(pieces: _Pieces, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+def _bounds_violations(pieces: Pieces, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     """Pieces leaving the box [lo, hi], found exactly from the extrema of each cubic."""
     c0, c1, c2, c3 = pieces.coef
     h = pieces.h[:, None]
@@ -825,23 +699,20 @@ def _bounds_violations(pieces: _Pieces, lo: np.ndarray, hi: np.ndarray) -> np.nd
 
 @dataclass
 class _Check:
-    grid: _Grid
-    cert: _Certificate
+    grid: SampleGrid
+    cert: Certificate
     violated: np.ndarray    # (P,) bool: clearance or bounds
 
 
 def _check_chain(chain: _Chain, obstacles: ObstacleSet, gamma: float, delta: float,
-                 bounds: Optional[Tuple[np.ndarray, np.ndarray]]) -> _Check:
+                 bounds: Optional[Tuple[np.ndarray, np.ndarray]],
+                 checkpoint: Optional[Callable[[], None]] = None) -> _Check:
     """Sample, certify and bounds-check every piece of the chain."""
-    pieces = chain.pieces
-    grid = _sample_grid(pieces, delta * CHECK_SPACING_FRACTION)
-    curv = np.linalg.norm(pieces.second(grid.piece, grid.tau), axis=1)
-    dist = obstacles.distance(grid.pos)
-    cert = _certify(pieces, grid.piece, grid.tau, grid.pos, curv, dist, grid.first, obstacles,
-                    gamma, delta * FINEST_SPACING_FRACTION, skip=chain.trusted)
+    grid, cert = certify_pieces(chain.pieces, obstacles, gamma, delta, skip=chain.trusted,
+                                checkpoint=checkpoint)
     violated = cert.violated.copy()
     if bounds is not None:
-        violated |= _bounds_violations(pieces, *bounds)
+        violated |= _bounds_violations(chain.pieces, *bounds)
     return _Check(grid, cert, violated)
 
 
@@ -864,7 +735,9 @@ def _no_path(layout: _Layout, gap: int, clearance: float, gamma: float,
 def smooth_path(raw_path, obstacles: ObstacleSet, safety_margin: float, resolution: float, *,
                 shortcut: bool = True, mode: str = 'chord', sample_spacing: float = 0.1,
                 index_step: float = 0.1, knot_spacing: Optional[float] = None,
-                bounds: Optional[Tuple[np.ndarray, np.ndarray]] = None) -> SmoothedPath:
+                bounds: Optional[Tuple[np.ndarray, np.ndarray]] = None,
+                keep: Sequence[int] = (),
+                checkpoint: Optional[Callable[[], None]] = None) -> SmoothedPath:
     """Shortcut, smooth and verify a node path; the returned curve keeps clearance >= gamma.
 
     Parameters
@@ -892,6 +765,13 @@ def smooth_path(raw_path, obstacles: ObstacleSet, safety_margin: float, resoluti
     bounds : tuple of two array_like of shape (3,), optional
         Box ``(min, max)`` [m] the curve must stay inside (for example the grid bounds, whose
         floor is the ground); not enforced when None.
+    keep : sequence of int
+        Indices of ``raw_path`` waypoints that shortcutting must keep (via-points): the curve
+        passes through each exactly, as a knot, and does not stop there unless a repair has to
+        straighten the stretch on both sides.
+    checkpoint : callable, optional
+        Called between shortcut jumps and repair rounds; it raises to abandon the work (a
+        cancelled request, an exhausted time budget).
 
     Returns
     -------
@@ -906,7 +786,7 @@ def smooth_path(raw_path, obstacles: ObstacleSet, safety_margin: float, resoluti
         can be built; the message says where and suggests the conservative re-plan.
     """
     points = _as_path(raw_path)
-    gamma, delta = _check_margins(safety_margin, resolution)
+    gamma, delta = check_margins(safety_margin, resolution, 'safety_margin')
     if mode not in SMOOTHING_MODES:
         raise InvalidInputError(
             f'smoothing mode must be one of {", ".join(SMOOTHING_MODES)}, got {mode!r}')
@@ -919,7 +799,8 @@ def smooth_path(raw_path, obstacles: ObstacleSet, safety_margin: float, resoluti
     knot_gap = positive_number('knot_spacing', knot_spacing)
     box = _check_bounds(points, bounds)
     path = _dedupe(points)
-    clearance = np.asarray(obstacles.distance(path))
+    # Capped: exact below gamma plus the slack, enough for the test and its message.
+    clearance = np.asarray(obstacles.distance(path, certificate_cap(gamma, delta)))
     if np.any(clearance < gamma):
         index = int(np.argmin(clearance))
         raise NoValidPathError(
@@ -929,7 +810,8 @@ def smooth_path(raw_path, obstacles: ObstacleSet, safety_margin: float, resoluti
         return _single_point(path, obstacles, mode)
 
     if shortcut:
-        vertices, certified, bound = _shortcut(path, obstacles, gamma, delta, box)
+        vertices, certified, bound = _shortcut_legs(path, _kept_indices(points, path, keep),
+                                                    obstacles, gamma, delta, box, checkpoint)
     else:
         vertices = path
         certified = np.zeros(len(path) - 1, dtype=bool)
@@ -948,15 +830,20 @@ def smooth_path(raw_path, obstacles: ObstacleSet, safety_margin: float, resoluti
                      np.full(len(vertices) - 1, mode == 'none'), knots)
     events: List[Tuple[float, float, str, float]] = []
     for _ in range(_MAX_REPAIR_ROUNDS):
+        if checkpoint is not None:
+            checkpoint()
         chain = _build_chain(layout, mode)
-        check = _check_chain(chain, obstacles, gamma, delta, box)
+        check = _check_chain(chain, obstacles, gamma, delta, box, checkpoint)
         bad = np.flatnonzero(check.violated)
         if not len(bad):
             break
         _repair(layout, chain, check, bad, events, obstacles, gamma, delta, box)
     else:  # pragma: no cover - each round halves a knot gap or straightens a polyline gap
         raise NoValidPathError('smoothing repair did not converge')
-    return _assemble(path, layout, chain, check, events, mode, spacing, step)
+    if checkpoint is not None:
+        checkpoint()
+    via_sigma = sigma[_vertex_indices(vertices, path, _kept_indices(points, path, keep))]
+    return _assemble(path, layout, chain, check, events, mode, spacing, step, via_sigma)
 
 
 def _check_bounds(points: np.ndarray, bounds) -> Optional[Tuple[np.ndarray, np.ndarray]]:
@@ -1009,7 +896,8 @@ def _repair(layout: _Layout, chain: _Chain, check: _Check, bad: np.ndarray, even
         # A knot inside the margin could never be certified: straighten that gap at once.
         owners = np.concatenate([np.full(len(new), p) for p, new in split])
         added = np.concatenate([new for _, new in split])
-        inside = np.atleast_1d(obstacles.distance(layout.points(added))) < gamma
+        inside = np.atleast_1d(obstacles.distance(layout.points(added),
+                                                  certificate_cap(gamma, delta))) < gamma
         for p in np.unique(owners[inside]):
             gap = int(chain.gap[p])
             straighten[gap] = min(float(check.cert.piece_min[p]), straighten.get(gap, np.inf))
@@ -1043,7 +931,7 @@ def _single_point(path: np.ndarray, obstacles: ObstacleSet, mode: str) -> Smooth
     zeros = np.zeros((1, 3))
     coef = np.zeros((4, 1, 3))
     coef[3, 0] = point[0]
-    curve = PathCurve(_Pieces(coef, np.ones(1)), np.zeros(1, dtype=np.int64), np.zeros(1),
+    curve = PathCurve(Pieces(coef, np.ones(1)), np.zeros(1, dtype=np.int64), np.zeros(1),
                       np.zeros(1), np.zeros(1), np.zeros(1), np.zeros(2), np.zeros(1))
     return SmoothedPath(point, point, 0.0, mode, point, np.zeros(1), zeros, zeros, zeros,
                         np.zeros(1), np.zeros(1, dtype=np.int64), point, 0.0, clearance,
@@ -1051,9 +939,13 @@ def _single_point(path: np.ndarray, obstacles: ObstacleSet, mode: str) -> Smooth
                         curve)
 
 
-def _span_samples(chain: _Chain, grid: _Grid, mode: str, spacing: float,
-                  step: float) -> Tuple[list, list]:
-    """Output samples of every span as (piece, tau) arrays, both span ends included."""
+def _span_samples(chain: _Chain, grid: SampleGrid, mode: str, spacing: float,
+                  step: float, via_sigma: np.ndarray) -> Tuple[list, list]:
+    """Output samples of every span as (piece, tau) arrays, both span ends included.
+
+    Knots at ``via_sigma`` (polyline arc lengths of via-points) are samples too, so the sampled
+    path passes through every via-point exactly.
+    """
     pieces = chain.pieces
     out_piece, out_tau = [], []
     ia = np.flatnonzero(grid.first)
@@ -1085,12 +977,23 @@ def _span_samples(chain: _Chain, grid: _Grid, mode: str, spacing: float,
             ta, tb = grid.tau[span_iv[j]], grid.tau[span_iv[j] + 1]
             piece = np.r_[p0, grid.piece[span_iv[j]], p1]
             tau = np.r_[0.0, ta + (tb - ta) * frac, pieces.h[p1]]
+            vias = np.arange(p0 + 1, p1 + 1)
+            vias = vias[np.isin(chain.sig[vias, 0], via_sigma)]
+            if len(vias):
+                # Targets within a micrometre of a via-point would make a zero-length step.
+                via_s = grid.s[np.flatnonzero(grid.first & (grid.tau == 0.0))][vias]
+                near = np.any(np.abs(target[:, None] - via_s[None, :]) < _VIA_SAMPLE_GAP, axis=1)
+                keep = np.r_[True, ~near, True]
+                piece = np.r_[piece[keep], vias]
+                tau = np.r_[tau[keep], np.zeros(len(vias))]
+                order = np.lexsort((tau, piece))
+                piece, tau = piece[order], tau[order]
         out_piece.append(piece)
         out_tau.append(tau)
     return out_piece, out_tau
 
 
-def _arc_length_at(pieces: _Pieces, grid: _Grid, piece: np.ndarray,
+def _arc_length_at(pieces: Pieces, grid: SampleGrid, piece: np.ndarray,
                    tau: np.ndarray) -> np.ndarray:
     """Arc length of points (piece, tau) [m], from the nearest verification sample below."""
     ia = np.flatnonzero(grid.first)
@@ -1107,10 +1010,10 @@ def _arc_length_at(pieces: _Pieces, grid: _Grid, piece: np.ndarray,
 
 
 def _assemble(path: np.ndarray, layout: _Layout, chain: _Chain, check: _Check, events: list,
-              mode: str, spacing: float, step: float) -> SmoothedPath:
+              mode: str, spacing: float, step: float, via_sigma: np.ndarray) -> SmoothedPath:
     pieces = chain.pieces
     grid = check.grid
-    span_piece, span_tau = _span_samples(chain, grid, mode, spacing, step)
+    span_piece, span_tau = _span_samples(chain, grid, mode, spacing, step, via_sigma)
     # Concatenate spans; each junction sample is kept once (as the end of the earlier span).
     piece = np.concatenate([span_piece[0]] + [p[1:] for p in span_piece[1:]])
     tau = np.concatenate([span_tau[0]] + [t[1:] for t in span_tau[1:]])
@@ -1163,7 +1066,7 @@ def _components(vectors: np.ndarray) -> np.ndarray:
     return np.stack([np.hypot(vectors[:, 0], vectors[:, 1]), np.abs(vectors[:, 2])], axis=1)
 
 
-def _interval_maxima(pieces: _Pieces, grid: _Grid, arc: np.ndarray, tangent_in: np.ndarray,
+def _interval_maxima(pieces: Pieces, grid: SampleGrid, arc: np.ndarray, tangent_in: np.ndarray,
                      tangent_out: np.ndarray, curvature: np.ndarray):
     """Largest horizontal and vertical tangent and curvature components over each interval.
 

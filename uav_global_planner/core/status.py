@@ -13,6 +13,7 @@ class PlanStatus(str, Enum):
     GOAL_OCCUPIED = 'goal_occupied'
     NO_VALID_PATH = 'no_valid_path'
     TIMEOUT = 'timeout'
+    CANCELED = 'canceled'
     INVALID_INPUT = 'invalid_input'
 
 
@@ -36,5 +37,7 @@ NAV2_CODE_BY_STATUS = {
     PlanStatus.GOAL_OCCUPIED: NAV2_GOAL_OCCUPIED,
     PlanStatus.NO_VALID_PATH: NAV2_NO_VALID_PATH,
     PlanStatus.TIMEOUT: NAV2_TIMEOUT,
+    # Nav2 reports a cancelled request through the action's goal status, not an error code.
+    PlanStatus.CANCELED: NAV2_UNKNOWN,
     PlanStatus.INVALID_INPUT: NAV2_UNKNOWN,
 }

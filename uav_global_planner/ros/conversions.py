@@ -420,15 +420,27 @@ def cloud_to_points(msg: PointCloud2, expected_frame: str, drop_non_finite: bool
         raise InputRejected(
             f'obstacle_cloud data has {len(data)} bytes, {needed} needed for {height} x '
             f'{width} points (truncated?)')
-    layout = np.dtype({'names': ['x', 'y', 'z'], 'formats': formats, 'offsets': offsets,
-                       'itemsize': point_step})
-    # A strided view of the rows, so padding at row ends is skipped without copying.
-    records = np.ndarray(shape=(height, width), dtype=layout, buffer=data,
-                         strides=(row_step, point_step))
-    points = np.stack([records['x'].ravel(), records['y'].ravel(), records['z'].ravel()],
-                      axis=-1).astype(np.float64)
-    finite = np.all(np.isfinite(points), axis=1)
-    if not np.all(finite):
+    points = np.empty((height * width, 3))
+    size = np.dtype(formats[0]).itemsize
+    if (formats[0] == formats[1] == formats[2] and offsets[1] == offsets[0] + size
+            and offsets[2] == offsets[0] + 2 * size):
+        # x, y, z side by side (the usual layout): one strided view per row of points, read in
+        # a single pass (a large cloud at sensor rate is mostly this copy).
+        view = np.ndarray(shape=(height, width, 3), dtype=formats[0], buffer=data,
+                          offset=offsets[0], strides=(row_step, point_step, size))
+        points.reshape(height, width, 3)[...] = view
+    else:
+        layout = np.dtype({'names': ['x', 'y', 'z'], 'formats': formats, 'offsets': offsets,
+                           'itemsize': point_step})
+        # A strided view of the rows, so padding at row ends is skipped without copying.
+        records = np.ndarray(shape=(height, width), dtype=layout, buffer=data,
+                             strides=(row_step, point_step))
+        for column, axis in enumerate('xyz'):
+            points[:, column] = records[axis].ravel()
+    if np.isfinite(points.reshape(-1)).all():  # the usual case, without a per-row pass
+        return points
+    finite = np.isfinite(points).all(axis=1)
+    if not finite.all():
         if not drop_non_finite:
             raise InputRejected(
                 f'obstacle_cloud has {int(np.sum(~finite))} points with NaN/inf coordinates '
@@ -620,6 +632,7 @@ def plan_diagnostic_values(result: PlanResult, start_source: str,
         'path_length_m': result.path_length_m,
         'smoothed_length_m': result.smoothed_length_m,
         'duration_s': result.duration_s,
+        'energy_wh': result.energy.energy_wh if result.energy is not None else float('nan'),
         'min_clearance_m': result.min_clearance_m,
         'resolution_m': result.resolution,
         'safety_margin_m': result.safety_margin,

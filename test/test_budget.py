@@ -1,0 +1,115 @@
+"""The plan-wide budget: TIMEOUT naming the stage, cancellation, progress, via-points."""
+
+import numpy as np
+import pytest
+
+from uav_global_planner.core.budget import PlanBudget, PlanStage
+from uav_global_planner.core.config import PlannerConfig
+from uav_global_planner.core.errors import PlanningCancelledError, PlanningTimeoutError
+from uav_global_planner.core.obstacles import Box, ObstacleSet, PointSet, Sphere
+from uav_global_planner.core.planner import Planner
+from uav_global_planner.core.status import PlanStatus
+
+FINE = PlannerConfig(resolution=0.1, algorithm='dijkstra', max_planning_time=0.0)
+SPHERES = ObstacleSet([Sphere([0.0, 0.0, 5.0], 3.0), Box([-9.0, 4.0, 0.0], [9.0, 5.0, 12.0])])
+
+
+def test_budget_raises_cancel_and_timeout_naming_the_stage():
+    budget = PlanBudget(0.0, cancel=lambda: True)
+    budget.stage = PlanStage.SMOOTHING
+    with pytest.raises(PlanningCancelledError, match='cancelled during smoothing'):
+        budget.check()
+    spent = PlanBudget(1e-9)
+    spent.stage = PlanStage.TIMING
+    with pytest.raises(PlanningTimeoutError, match='timing ran out of the planning time'):
+        spent.check()
+    PlanBudget(0.0).check()  # no limit, no cancel: nothing happens
+
+
+def test_grid_build_out_of_budget_is_a_timeout_of_that_stage():
+    planner = Planner(FINE.with_changes(max_planning_time=1e-3), SPHERES)
+    result = planner.plan([0.0, -8.0, 1.0], [0.0, 8.0, 1.0])
+    assert result.status is PlanStatus.TIMEOUT
+    assert result.message.startswith('grid build ran out'), result.message
+    assert result.trajectory is None and len(result.path) == 0
+
+
+def test_search_out_of_budget_is_a_timeout_of_that_stage():
+    planner = Planner(FINE, SPHERES)
+    planner.warm_up()
+    planner.set_config(FINE.with_changes(max_planning_time=0.05))
+    result = planner.plan([0.0, -8.0, 1.0], [0.0, 8.0, 1.0])
+    assert result.status is PlanStatus.TIMEOUT
+    assert result.message.startswith('search ran out'), result.message
+    assert result.expanded_nodes > 0
+
+
+def test_smoothing_out_of_budget_is_a_timeout_of_that_stage():
+    # A dense cloud wall with a gap: search is quick (adaptive, coarse grid), the certified
+    # smoothing near 160 k points is not.
+    y, z = np.meshgrid(np.linspace(-10.0, 10.0, 400), np.linspace(0.0, 15.0, 400))
+    wall = np.stack([np.zeros(y.size), y.ravel(), z.ravel()], axis=1)
+    wall = wall[~((np.abs(wall[:, 1]) < 1.5) & (wall[:, 2] < 4.0))]
+    config = PlannerConfig(resolution=0.5, safety_margin=0.3, max_planning_time=0.0)
+    planner = Planner(config, ObstacleSet([PointSet(wall)]))
+    planner.warm_up()
+    free = planner.plan([-8.0, -6.0, 1.0], [8.0, 6.0, 1.0])
+    assert free.ok, free.message
+    budget = free.planning_time_s + 0.2 * free.smoothing_time_s
+    assert free.planning_time_s < budget < free.planning_time_s + free.smoothing_time_s
+    planner.set_config(config.with_changes(max_planning_time=budget))
+    result = planner.plan([-8.0, -6.0, 1.0], [8.0, 6.0, 1.0])
+    assert result.status is PlanStatus.TIMEOUT
+    assert result.message.startswith('smoothing ran out'), result.message
+
+
+def test_cancel_stops_a_plan_and_progress_names_the_stage():
+    planner = Planner(FINE, SPHERES)
+    planner.warm_up()
+    reports = []
+    calls = []
+
+    def cancel() -> bool:
+        calls.append(1)
+        return len(calls) > 3
+
+    result = planner.plan([0.0, -8.0, 1.0], [0.0, 8.0, 1.0], cancel=cancel,
+                          progress=lambda *report: reports.append(report))
+    assert result.status is PlanStatus.CANCELED
+    assert 'cancelled during search' in result.message
+    assert reports == [], 'a plan shorter than a second reported progress'
+
+
+def test_progress_is_reported_after_a_second_at_each_stage_and_every_second():
+    reports = []
+    budget = PlanBudget(30.0, progress=lambda *report: reports.append(report))
+    budget.check()
+    assert reports == []
+    budget.started -= 1.2   # the plan has been running for 1.2 s
+    budget.check()
+    budget.check()          # within the same second: no second report
+    budget.enter(PlanStage.SEARCH)
+    expected = [(PlanStage.GRID, 30.0), (PlanStage.SEARCH, 30.0)]
+    assert [(stage, limit) for stage, _, limit in reports] == expected
+    assert all(elapsed >= 1.2 for _, elapsed, _ in reports)
+
+
+def test_via_points_are_passed_exactly_and_legs_are_reported():
+    config = PlannerConfig(resolution=0.5, safety_margin=0.2)
+    planner = Planner(config, SPHERES)
+    via = [[-6.0, -6.0, 2.0], [6.0, -2.0, 8.0], [-6.0, 8.0, 3.0]]
+    result = planner.plan([0.0, -8.0, 1.0], [7.0, 8.0, 1.0], via=via)
+    assert result.ok, result.message
+    samples = result.smoothed_path
+    for point in via:
+        assert np.min(np.linalg.norm(samples - point, axis=1)) <= 1e-6
+    assert len(result.legs) == 4
+    assert sum(leg.duration_s for leg in result.legs) == pytest.approx(result.duration_s)
+    assert sum(leg.smoothed_length_m for leg in result.legs) == pytest.approx(
+        float(np.sum(np.linalg.norm(np.diff(samples, axis=0), axis=1))))
+    assert all(leg.expanded_nodes > 0 for leg in result.legs)
+    assert planner.plan_is_clear(result).clear
+    # A via-point inside an obstacle names its leg.
+    blocked = planner.plan([0.0, -8.0, 1.0], [7.0, 8.0, 1.0], via=[via[0], [0.0, 0.0, 5.0]])
+    assert blocked.status is PlanStatus.GOAL_OCCUPIED
+    assert blocked.failed_leg == 1 and 'via-point 2 (end of leg 1)' in blocked.message

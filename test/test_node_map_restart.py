@@ -1,0 +1,184 @@
+"""State that survives a restart, a second node of the same name, and a prior map file, with
+the planner node as a real process.
+"""
+
+import signal
+import subprocess
+import time
+
+from diagnostic_msgs.msg import DiagnosticArray
+import numpy as np
+import pytest
+from visualization_msgs.msg import Marker, MarkerArray
+
+from ros_harness import (assert_clean_exit, marker, marker_array, min_clearance, NodeProcess,
+                         OBSTACLES_QOS, planner_command, PlannerClient, READY_TEXT,
+                         ros_environment, RosClient, RUN_NAMESPACE, start_planner,
+                         STARTUP_TIMEOUT_S, unique_domain_id)
+from uav_global_planner.core.obstacles import ObstacleSet, PointSet
+from uav_global_planner.ros import conversions as conv
+
+pytestmark = pytest.mark.ros
+
+GAMMA = 0.2
+TOL = 1e-6
+ERROR = 2
+
+
+def test_a_map_of_30_incremental_arrays_is_rebuilt_whole_after_a_restart() -> None:
+    """The publisher keeps its last 100 arrays (transient local, depth 100), as the node's
+    subscription does: a restarted node gets all of them, in order."""
+    domain_id = unique_domain_id()
+    namespace = f'{RUN_NAMESPACE}/restart'
+    client = RosClient(domain_id)
+    first = start_planner(domain_id, namespace=namespace)
+    second = None
+    try:
+        diagnostics = client.record(DiagnosticArray, '/diagnostics')
+        planner = PlannerClient(client, namespace, diagnostics, first)
+        publisher = client.publisher(MarkerArray, planner.prefix + 'obstacles', OBSTACLES_QOS)
+        for number in range(30):
+            # Each array adds one sphere; the 10th also deletes the 5th and adds it back moved.
+            markers = [marker('incremental', number, Marker.SPHERE,
+                              [-9.0 + 0.6 * number, 9.0, 2.0], [0.4, 0.4, 0.4])]
+            if number == 10:
+                markers += [marker('incremental', 5, Marker.SPHERE, [0, 0, 0], [1, 1, 1],
+                                   action=Marker.DELETE),
+                            marker('incremental', 5, Marker.SPHERE, [-6.0, 8.0, 2.0],
+                                   [0.4, 0.4, 0.4])]
+            publisher.publish(marker_array(*markers))
+        planner.wait_obstacle_count(30, timeout_s=20.0)
+        assert_clean_exit(first, first.stop(signal.SIGINT))
+        second = start_planner(domain_id, namespace=namespace)
+        restarted = PlannerClient(client, namespace, diagnostics, second)
+        shown = restarted.wait_obstacle_count(30, restarted.markers.mark(), 20.0)
+        centers = sorted(tuple(round(v, 3) for v in (m.pose.position.x, m.pose.position.y))
+                         for m in shown.markers if m.ns == 'obstacles')
+        expected = sorted([(round(-9.0 + 0.6 * n, 3), 9.0) for n in range(30) if n != 5]
+                          + [(-6.0, 8.0)])
+        assert centers == expected
+        status = restarted.wait_diag(0, 'map_status', check=lambda v: v['obstacles'] == '30')
+        assert int(status['obstacles_accepted']) == 30, status
+    finally:
+        client.close()
+        for process in (first, second):
+            if process is not None:
+                process.kill()
+
+
+def test_a_second_node_with_the_same_name_is_reported_by_both() -> None:
+    domain_id = unique_domain_id()
+    namespace = f'{RUN_NAMESPACE}/twins'
+    client = RosClient(domain_id)
+    first = start_planner(domain_id, namespace=namespace)
+    second = None
+    try:
+        diagnostics = client.record(DiagnosticArray, '/diagnostics')
+        planner = PlannerClient(client, namespace, diagnostics, first)
+        mark, log_mark = diagnostics.mark(), first.mark()
+        second = start_planner(domain_id, namespace=namespace)
+        found = planner.wait_diag(mark, 'duplicate_node', 20.0)
+        assert found['_level'] == ERROR and found['nodes_with_this_name'] == '2', found
+        assert 'stop them or start this one in another namespace' in found['message']
+        line = first.wait_for_output('other node(s) named', 20.0, log_mark)
+        assert f'{namespace}/global_planner' in line
+        second.wait_for_output('other node(s) named', 20.0)
+        # Gone again: the remaining node says so.
+        assert_clean_exit(second, second.stop(signal.SIGINT))
+        first.wait_for_output('is gone', 20.0, log_mark)
+    finally:
+        client.close()
+        for process in (first, second):
+            if process is not None:
+                process.kill()
+
+
+def test_a_prior_map_file_is_a_map_and_is_kept_off(tmp_path) -> None:
+    """A .npy wall across the workspace: goals are planned on it without any topic, around it
+    by gamma plus the downsampling margin; the file is fixed for the node's life."""
+    wall = np.array([[x, 0.0, z] for x in np.arange(-10.0, 6.01, 0.1)
+                     for z in np.arange(0.0, 15.01, 0.1)])
+    path = tmp_path / 'wall.npy'
+    np.save(path, wall)
+    domain_id = unique_domain_id()
+    namespace = f'{RUN_NAMESPACE}/prior'
+    client = RosClient(domain_id)
+    process = start_planner(domain_id, namespace=namespace, parameters={
+        'map_file': str(path), 'map_downsample': 0.2})
+    try:
+        assert 'prior map' in process.wait_for_output(READY_TEXT, 1.0)
+        planner = PlannerClient(client, namespace, client.record(DiagnosticArray,
+                                                                 '/diagnostics'), process)
+        values, plan = planner.plan_to([0.0, 5.0, 2.0])
+        assert values['status'] == 'ok', values
+        assert 'map_file: 1 accepted' in values['map_sources'], values
+        margin = 0.2 * np.sqrt(3.0) / 2.0
+        assert float(values['safety_margin_m']) == pytest.approx(GAMMA + margin, abs=1e-4)
+        points = conv.path_to_points(plan)
+        assert min_clearance(points, ObstacleSet([PointSet(wall)])) >= GAMMA - TOL
+        assert np.max(points[:, 0]) > 6.0, 'the path does not go round the wall'
+        (result,) = planner.params.set({'map_file': ''})
+        assert not result.successful and 'restart the node' in result.reason
+    finally:
+        client.close()
+        process.kill()
+    # A file that cannot be read: exit code 2 and the file named.
+    broken = tmp_path / 'broken.npy'
+    broken.write_bytes(b'not a numpy file')
+    run = subprocess.run(planner_command(parameters={'map_file': str(broken)}),
+                         env=ros_environment(unique_domain_id()), capture_output=True, text=True,
+                         timeout=STARTUP_TIMEOUT_S)
+    assert run.returncode == 2, run.stderr
+    assert 'broken.npy' in run.stderr and 'invalid parameters' in run.stderr
+
+
+def test_a_frame_switch_during_a_long_plan_cancels_it_and_withdraws_the_old_plan() -> None:
+    domain_id = unique_domain_id()
+    namespace = f'{RUN_NAMESPACE}/frames'
+    client = RosClient(domain_id)
+    process = start_planner(domain_id, namespace=namespace, parameters={
+        'resolution': 0.1, 'algorithm': 'dijkstra', 'max_planning_time': 120.0,
+        'plan_without_map': True})
+    try:
+        planner = PlannerClient(client, namespace, client.record(DiagnosticArray,
+                                                                 '/diagnostics'), process)
+        values, _ = planner.plan_to([1.0, -4.0, 1.0], timeout_s=60.0)
+        assert values['status'] == 'ok', values
+        mark, plans = planner.diagnostics.mark(), planner.plans.mark()
+        planner.publish('goal_pose', conv.pose_stamped([9.0, 9.0, 14.0], 'map', 0))
+        planner.wait_diag(mark, 'progress', 60.0)
+        (result,) = planner.params.set({'frame_id': 'world'})
+        assert result.successful, result.reason
+        cancelled = planner.wait_diag(mark, 'plan_cancelled', 30.0)
+        assert cancelled['status'] == 'canceled', cancelled
+        withdrawn = planner.wait_diag(mark, 'plan_withdrawn', 30.0)
+        assert "frame_id changed to 'world'" in withdrawn['reason'], withdrawn
+        empty = planner.plans.wait_for(after=plans, what='the withdrawal')
+        assert len(empty.poses) == 0 and empty.header.frame_id == 'world'
+        time.sleep(1.0)
+        assert planner.diag_events(mark, 'plan') == [], 'the old-frame goal was planned'
+        # The new frame plans: goals in it are taken (open air here).
+        values, plan = planner.plan_to([1.0, -4.0, 1.0], frame_id='world', timeout_s=60.0)
+        assert values['status'] == 'ok' and plan.header.frame_id == 'world', values
+    finally:
+        client.close()
+        process.kill()
+
+
+def test_the_node_starts_with_the_shipped_defaults_from_the_console_script() -> None:
+    """The parameters added for live maps are declared with their documented defaults."""
+    domain_id = unique_domain_id()
+    process = NodeProcess(planner_command(namespace=f'{RUN_NAMESPACE}/defaults'),
+                          ros_environment(domain_id))
+    client = RosClient(domain_id)
+    try:
+        process.wait_for_output(READY_TEXT, STARTUP_TIMEOUT_S)
+        params = client.parameters(f'{RUN_NAMESPACE}/defaults/global_planner')
+        values = params.get(['cloud_qos_reliability', 'plan_without_map', 'required_map_sources',
+                             'start_tolerance', 'start_replan_distance', 'map_file'])
+        assert values == {'cloud_qos_reliability': 'reliable', 'plan_without_map': False,
+                          'required_map_sources': ['any'], 'start_tolerance': 0.5,
+                          'start_replan_distance': 2.0, 'map_file': ''}
+    finally:
+        client.close()
+        process.kill()

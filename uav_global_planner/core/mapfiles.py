@@ -1,0 +1,407 @@
+"""Occupied points from map files: PCD, PLY, LAS/LAZ, OctoMap ``.bt`` and ``.npy``.
+
+Each format is read by the field's own library, an optional extra imported only when a file of
+that format is loaded (``pip install uav_global_planner[maps]`` installs them all):
+
+========== ============================== ===================================================
+suffix     pip package                    what becomes an obstacle point
+========== ============================== ===================================================
+``.pcd``   ``pypcd4``                     every point (fields x, y, z), ASCII or binary
+``.ply``   ``plyfile``                    every vertex (x, y, z); meshes are refused
+``.las``   ``laspy``                      every point, scaled and offset to metres
+``.laz``   ``laspy`` and ``lazrs``        the same, compressed
+``.bt``    ``octomap-python``             the centre of every occupied leaf cell
+``.npy``   (numpy)                        every row of an (N, 3) array
+========== ============================== ===================================================
+
+Coordinates are taken as metres in the planning frame. Points with NaN or infinite coordinates
+(organised clouds mark missing returns so) are dropped and counted.
+
+Conservative margins
+--------------------
+A point set stands for an occupied region within :attr:`MapPoints.margin_m` of its points: every
+occupied location of the source lies within that distance of some point. A path that keeps
+clearance ``gamma + margin_m`` from the points therefore keeps ``gamma`` from the source, since
+the distance to the source is at least the distance to the points minus ``margin_m``.
+
+- PCD, PLY, LAS/LAZ and ``.npy`` points are the obstacles themselves: margin 0.
+- An OctoMap leaf is a cube of side ``s`` (the tree resolution, or a multiple of it for pruned
+  leaves, which are split into cells of the tree resolution); its centre lies within
+  ``s * sqrt(3) / 2`` of every point of the cube, the margin of a ``.bt`` file.
+- Voxel downsampling with cell ``c`` keeps one point per occupied cell, the cell's centre (the
+  point of a cube that is nearest to its farthest corner), so it adds ``c * sqrt(3) / 2``.
+"""
+
+from dataclasses import dataclass
+import importlib
+import math
+from pathlib import Path
+from types import ModuleType
+from typing import Callable, Dict, Iterable, Optional, Tuple, Union
+
+import numpy as np
+
+from uav_global_planner.core.errors import InvalidInputError, MissingDependencyError
+from uav_global_planner.core.obstacles import ObstacleSet, PointSet
+
+PathLike = Union[str, Path]
+
+#: The factor of a cube's side that bounds the distance from its centre to any of its points.
+HALF_DIAGONAL = math.sqrt(3.0) / 2.0
+
+#: Largest number of points an OctoMap file may expand into (pruned leaves are split into cells
+#: of the tree resolution): about 1.2 GB of float64 coordinates plus the search tree.
+MAX_OCTOMAP_POINTS = 50_000_000
+
+
+@dataclass(frozen=True, eq=False)
+class MapPoints:
+    """Occupied points read from one or more map files.
+
+    Attributes
+    ----------
+    points : numpy.ndarray, shape (N, 3)
+        Finite float64 positions [m] in the planning frame; N may be 0.
+    margin_m : float
+        Every occupied location of the source lies within this distance of a point [m] (0 for
+        plain point files; see the module notes).
+    source : str
+        The file (or files, comma-separated) the points come from.
+    read_points : int
+        Points (or OctoMap cells) in the file(s), before dropping and downsampling.
+    dropped_non_finite : int
+        Points with NaN or infinite coordinates that were dropped.
+    """
+
+    points: np.ndarray
+    margin_m: float
+    source: str
+    read_points: int
+    dropped_non_finite: int = 0
+
+    def obstacle(self) -> PointSet:
+        """The points as a :class:`PointSet` obstacle."""
+        return PointSet(self.points)
+
+
+def downsample_margin(cell: float) -> float:
+    """Margin [m] that voxel downsampling with cells of side ``cell`` [m] adds: c * sqrt(3) / 2."""
+    return float(cell) * HALF_DIAGONAL
+
+
+def voxel_downsample(points: np.ndarray, cell: float) -> np.ndarray:
+    """One point per occupied cell of side ``cell``: the centre of the cell.
+
+    The cells tile space from the origin of the frame, ``[k * cell, (k + 1) * cell)`` per axis.
+    Every input point lies within ``cell * sqrt(3) / 2`` of the centre of its cell
+    (:func:`downsample_margin`).
+
+    Parameters
+    ----------
+    points : numpy.ndarray, shape (N, 3)
+        Finite positions [m].
+    cell : float
+        Cell side [m], > 0.
+
+    Returns
+    -------
+    numpy.ndarray, shape (M, 3), M <= N
+        Cell centres [m], sorted by cell index (deterministic).
+
+    Raises
+    ------
+    InvalidInputError
+        For a cell that is not a finite number > 0.
+    """
+    size = _cell_size(cell, 'downsample')
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    if len(pts) == 0:
+        return pts.copy()
+    index = np.floor(pts / size).astype(np.int64)
+    low = index.min(axis=0)
+    span = index.max(axis=0) - low + 1
+    if float(np.prod(span.astype(np.float64))) < 2.0 ** 62:
+        # One int64 key per cell: a 1-D unique is several times faster than unique rows.
+        shifted = index - low
+        keys = (shifted[:, 0] * span[1] + shifted[:, 1]) * span[2] + shifted[:, 2]
+        # Sort and compare neighbours: np.unique takes many times longer on a million keys.
+        keys.sort()
+        unique = keys[np.concatenate(([True], keys[1:] != keys[:-1]))]
+        cells = np.stack(np.unravel_index(unique, tuple(int(s) for s in span)), axis=-1) + low
+    else:
+        cells = np.unique(index, axis=0)
+    return (cells.astype(np.float64) + 0.5) * size
+
+
+def _cell_size(value, name: str) -> float:
+    if isinstance(value, bool):
+        raise InvalidInputError(f'{name} must be a cell size > 0 m, got {value!r}')
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise InvalidInputError(f'{name} must be a cell size > 0 m, got {value!r}') from None
+    if not math.isfinite(number) or number <= 0.0:
+        raise InvalidInputError(f'{name} must be a finite cell size > 0 m, got {number}')
+    return number
+
+
+# --------------------------------------------------------------------------------------------
+# Readers: each returns (points as an (N, 3) array, margin [m], cells or points read).
+# --------------------------------------------------------------------------------------------
+
+def _require(module: str, package: str, what: str) -> ModuleType:
+    """Import an optional extra, or say which pip package brings it."""
+    try:
+        return importlib.import_module(module)
+    except ImportError:
+        raise MissingDependencyError(
+            f'reading {what} needs the Python package {package!r}, which is not installed: '
+            f'pip install {package} (or pip install uav_global_planner[maps])') from None
+
+
+def _as_xyz(columns, file: Path, kind: str) -> np.ndarray:
+    try:
+        return np.column_stack([np.asarray(c, dtype=np.float64) for c in columns])
+    except (TypeError, ValueError) as error:
+        raise InvalidInputError(f'{file}: the x, y, z of this {kind} file are not numbers '
+                                f'({error})') from None
+
+
+def _read_pcd(file: Path) -> Tuple[np.ndarray, float, int]:
+    pypcd4 = _require('pypcd4', 'pypcd4', 'PCD files')
+    cloud = pypcd4.PointCloud.from_path(file)
+    missing = [axis for axis in 'xyz' if axis not in cloud.fields]
+    if missing:
+        raise InvalidInputError(f'{file}: this PCD file has no {", ".join(missing)} field '
+                                f'(fields: {", ".join(cloud.fields)})')
+    points = _as_xyz([cloud.pc_data[axis] for axis in 'xyz'], file, 'PCD')
+    expected = int(cloud.metadata.points)
+    if len(points) != expected:
+        # An ASCII file cut at a line end parses without complaint.
+        raise InvalidInputError(f'{file}: truncated PCD file: the header announces {expected} '
+                                f'points, the data holds {len(points)}')
+    return points, 0.0, len(points)
+
+
+def _read_ply(file: Path) -> Tuple[np.ndarray, float, int]:
+    plyfile = _require('plyfile', 'plyfile', 'PLY files')
+    data = plyfile.PlyData.read(str(file))
+    names = [element.name for element in data.elements]
+    if 'vertex' not in names:
+        raise InvalidInputError(f'{file}: this PLY file has no vertex element '
+                                f'(elements: {", ".join(names) or "none"})')
+    if 'face' in names and data['face'].count > 0:
+        # The planner avoids points: a mesh's faces between its vertices would be flown
+        # through.
+        raise InvalidInputError(
+            f'{file}: this PLY file is a mesh ({data["face"].count} faces); only its vertices '
+            'would be obstacles and its faces would be flown through: sample the surface into '
+            'a point cloud first')
+    vertex = data['vertex']
+    properties = [p.name for p in vertex.properties]
+    missing = [axis for axis in 'xyz' if axis not in properties]
+    if missing:
+        raise InvalidInputError(f'{file}: the PLY vertices have no {", ".join(missing)} '
+                                f'property (properties: {", ".join(properties)})')
+    points = _as_xyz([vertex[axis] for axis in 'xyz'], file, 'PLY')
+    return points, 0.0, len(points)
+
+
+def _read_las(file: Path) -> Tuple[np.ndarray, float, int]:
+    laspy = _require('laspy', 'laspy', 'LAS/LAZ files')
+    if file.suffix.lower() == '.laz' and not laspy.LazBackend.detect_available():
+        raise MissingDependencyError(
+            f'{file}: reading LAZ files needs a LAZ backend for laspy, and none is installed: '
+            'pip install lazrs (or pip install uav_global_planner[maps])')
+    with laspy.open(str(file)) as reader:
+        data = reader.read()
+    # laspy applies the header's scales and offsets: metres, as float64.
+    points = np.ascontiguousarray(data.xyz, dtype=np.float64).reshape(-1, 3)
+    return points, 0.0, len(points)
+
+
+def _read_octomap(file: Path) -> Tuple[np.ndarray, float, int]:
+    octomap = _require('octomap', 'octomap-python', 'OctoMap .bt files')
+    # The resolution given here is replaced by the one stored in the file.
+    tree = octomap.OcTree(0.1)
+    if not tree.readBinary(str(file).encode()):
+        raise InvalidInputError(f'{file}: not a valid OctoMap binary (.bt) file: the OctoMap '
+                                'library could not read it (truncated, or not an OcTree)')
+    resolution = float(tree.getResolution())
+    occupied = tree.isNodeOccupied
+    # One flat list of floats: a tuple per leaf would make millions of objects for the garbage
+    # collector to walk.
+    flat: list = []
+    append = flat.extend
+    for leaf in tree.begin_leafs():
+        if occupied(leaf):
+            append((leaf.getX(), leaf.getY(), leaf.getZ(), leaf.getSize()))
+    leaves = np.array(flat, dtype=np.float64).reshape(-1, 4)
+    del flat
+    # Pruned leaves stand for 2^k cells of the tree resolution per axis; split them so that
+    # every point is a cell centre and the margin is the same everywhere.
+    per_axis = np.maximum(np.rint(leaves[:, 3] / resolution).astype(np.int64), 1)
+    total = int(np.sum(per_axis.astype(np.float64) ** 3))
+    if total > MAX_OCTOMAP_POINTS:
+        raise InvalidInputError(
+            f'{file}: the occupied leaves of this OctoMap make {total} cells of '
+            f'{resolution} m, more than the {MAX_OCTOMAP_POINTS} accepted')
+    parts = []
+    for count in np.unique(per_axis):
+        chosen = leaves[per_axis == count, :3]
+        if count == 1:
+            parts.append(chosen)
+            continue
+        steps = (np.arange(count) - (count - 1) / 2.0) * resolution
+        offsets = np.stack(np.meshgrid(steps, steps, steps, indexing='ij'), axis=-1)
+        parts.append((chosen[:, None, :] + offsets.reshape(1, -1, 3)).reshape(-1, 3))
+    points = np.concatenate(parts) if parts else np.empty((0, 3))
+    return points, resolution * HALF_DIAGONAL, len(points)
+
+
+def _read_npy(file: Path) -> Tuple[np.ndarray, float, int]:
+    array = np.load(file, allow_pickle=False)
+    if array.ndim != 2 or array.shape[1] != 3:
+        raise InvalidInputError(f'{file}: a .npy map must hold an (N, 3) array of x, y, z, '
+                                f'got shape {tuple(array.shape)}')
+    if array.dtype.kind not in 'fiu':
+        raise InvalidInputError(f'{file}: a .npy map must hold numbers, got dtype {array.dtype}')
+    points = np.asarray(array, dtype=np.float64)
+    return points, 0.0, len(points)
+
+
+#: Map file suffix (lower case) to (format name, reader).
+_READERS: Dict[str, Tuple[str, Callable[[Path], Tuple[np.ndarray, float, int]]]] = {
+    '.pcd': ('PCD', _read_pcd),
+    '.ply': ('PLY', _read_ply),
+    '.las': ('LAS', _read_las),
+    '.laz': ('LAZ', _read_las),
+    '.bt': ('OctoMap binary', _read_octomap),
+    '.npy': ('NumPy .npy', _read_npy),
+}
+
+#: The suffixes :func:`load_map_points` reads.
+MAP_SUFFIXES = tuple(_READERS)
+
+
+def load_map_points(path: PathLike, downsample: Optional[float] = None) -> MapPoints:
+    """Read the occupied points of a map file, optionally downsampled.
+
+    Parameters
+    ----------
+    path : str or Path
+        A ``.pcd``, ``.ply``, ``.las``, ``.laz``, ``.bt`` or ``.npy`` file (by suffix, any case).
+    downsample : float, optional
+        Cell side [m]: keep one point, the cell centre, per occupied cell
+        (:func:`voxel_downsample`); the margin grows by ``downsample * sqrt(3) / 2``.
+
+    Returns
+    -------
+    MapPoints
+
+    Raises
+    ------
+    MissingDependencyError
+        When the format's library is not installed; the message names the pip package.
+    InvalidInputError
+        For an unknown suffix, a missing or unreadable file, or a corrupt or truncated one; the
+        message starts with the file name.
+    """
+    file = Path(path)
+    cell = None if downsample is None else _cell_size(downsample, 'downsample')
+    if not file.is_file():
+        reason = 'it is a folder' if file.is_dir() else 'no such file'
+        raise InvalidInputError(f'{file}: cannot read map file ({reason})')
+    suffix = file.suffix.lower()
+    if suffix not in _READERS:
+        raise InvalidInputError(f'{file}: unknown map file type {file.suffix or "(none)"!r}; '
+                                f'supported: {", ".join(MAP_SUFFIXES)}')
+    name, reader = _READERS[suffix]
+    try:
+        points, margin, read = reader(file)
+    except (InvalidInputError, MemoryError):
+        raise
+    except OSError as error:
+        raise InvalidInputError(f'{file}: cannot read map file '
+                                f'({error.strerror or error})') from None
+    except Exception as error:  # noqa: BLE001 - each library has its own error types
+        # Corrupt and truncated files surface as the libraries' own exceptions (ValueError,
+        # struct errors, parse errors, pydantic validation errors, ...): name the file.
+        raise InvalidInputError(f'{file}: not a valid {name} file, or truncated '
+                                f'({_describe(error)})') from None
+    finite = np.all(np.isfinite(points), axis=1)
+    dropped = int(len(points) - np.count_nonzero(finite))
+    if dropped:
+        points = points[finite]
+    if cell is not None:
+        points = voxel_downsample(points, cell)
+        margin += downsample_margin(cell)
+    points = np.ascontiguousarray(points, dtype=np.float64)
+    return MapPoints(points=points, margin_m=float(margin), source=str(file), read_points=read,
+                     dropped_non_finite=dropped)
+
+
+def _describe(error: Exception) -> str:
+    """One line about a library's exception: its type and first line, or the header fields a
+    validating reader (pypcd4 uses pydantic) found missing or wrong."""
+    name = type(error).__name__
+    problems = getattr(error, 'errors', None)
+    if callable(problems):
+        try:
+            fields = sorted({'.'.join(str(part) for part in item.get('loc', ())) or '?'
+                             for item in problems()})
+            return f'{name}: bad or missing header field(s) {", ".join(fields)}'
+        except Exception:  # noqa: BLE001 - fall back to the text below
+            pass
+    text = str(error).strip()
+    return f'{name}: {text.splitlines()[0]}' if text else name
+
+
+def load_map_files(paths: Iterable[PathLike], downsample: Optional[float] = None) -> MapPoints:
+    """Read several map files into one point set (see :func:`load_map_points`).
+
+    The margin is the largest of the files' margins.
+    """
+    maps = [load_map_points(path, downsample) for path in paths]
+    if not maps:
+        return MapPoints(points=np.empty((0, 3)), margin_m=0.0, source='', read_points=0)
+    return MapPoints(points=np.concatenate([m.points for m in maps]),
+                     margin_m=max(m.margin_m for m in maps),
+                     source=', '.join(m.source for m in maps),
+                     read_points=sum(m.read_points for m in maps),
+                     dropped_non_finite=sum(m.dropped_non_finite for m in maps))
+
+
+def load_prior_map(map_file: str, downsample: float = 0.0) -> Optional[MapPoints]:
+    """The static prior map of the planner node, from its ``map_file`` parameter.
+
+    Parameters
+    ----------
+    map_file : str
+        Path of a map file; empty (or only blanks) for none.
+    downsample : float
+        Cell side [m] of the voxel downsampling; 0 for none.
+
+    Returns
+    -------
+    MapPoints or None
+        None when ``map_file`` is empty.
+
+    Raises
+    ------
+    InvalidInputError
+        As :func:`load_map_points`; the message starts with the file name.
+    """
+    if not isinstance(map_file, str):
+        raise InvalidInputError(f'map_file must be a path (a string), got {map_file!r}')
+    if not map_file.strip():
+        return None
+    cell = None if downsample == 0.0 else downsample
+    return load_map_points(Path(map_file.strip()).expanduser(), cell)
+
+
+def with_prior_map(obstacles: ObstacleSet, prior: Optional[MapPoints]) -> ObstacleSet:
+    """``obstacles`` plus the points of a prior map (unchanged when ``prior`` is None)."""
+    if prior is None or len(prior.points) == 0:
+        return obstacles
+    return ObstacleSet([*obstacles.items, prior.obstacle()])

@@ -1,0 +1,379 @@
+"""Mission export on the planner node: write the plan in force as a ground-station mission.
+
+``export_mission`` (std_srvs/srv/Trigger, relative name) writes the mission of the plan in force
+(:mod:`uav_global_planner.core.mission`: certified waypoints, take-off, speed items, the end
+action) to the file named by the ``mission_file`` parameter, as a QGroundControl ``.plan`` or a
+``QGC WPL 110`` file, and answers with ``success`` and, in ``message``, a JSON object:
+``path`` (absolute), ``waypoints`` (items with a position), ``items``, ``format``, ``firmware``,
+``required_clearance_m``, ``certified_clearance_m`` and ``plan_stamp_ns`` (the header stamp of
+the exported ``plan``). On failure ``success`` is false and ``message`` says why (no plan in
+force, no geodetic origin, no certified mission and where, an unwritable file).
+
+Why std_srvs/Trigger: it is in every ROS 2 installation (ros-jazzy-common-interfaces here), so
+``ros2 service call <ns>/export_mission std_srvs/srv/Trigger`` works without building a
+custom interface package, and its answer (a flag and a text) carries the path and the waypoint
+count. The file name is a parameter, as the rest of the export's settings are::
+
+    ros2 param set /global_planner mission_file /tmp/survey.plan
+    ros2 service call /export_mission std_srvs/srv/Trigger    # <namespace>/export_mission
+
+The plan in force is the one latched on the node's ``plan`` and ``unsmoothed_plan`` topics,
+which this module subscribes to (an empty ``plan`` withdraws it). The mission is built on the
+node's planning worker (:meth:`PlanHost.submit`), against the newest obstacles and settings the
+worker has applied, so it is certified against what the planner knows when the request is
+served; the service callback awaits it without blocking the executor.
+
+Parameters (declared on the node; validated when set, other parameters are left to their owner):
+
+==============================  ============  =========================================
+``mission_file``                string        file to write ('' = none set)
+``mission_format``              string        ``qgc``, ``wpl``, or '' (from the extension)
+``mission_firmware``            string        ``px4`` or ``ardupilot``
+``mission_end``                 string        ``loiter``, ``land`` or ``rtl``
+``mission_acceptance_radius``   double [m]    the autopilot's acceptance radius R
+``mission_tracking_allowance``  double [m]    clearance added to gamma for tracking
+``mission_takeoff_height``      double [m]    take-off climb (lowered to the highest clear)
+``mission_rtl_altitude``        double [m]    return altitude above home for ``rtl``
+``geodetic_origin``             double[3]     [lat deg, lon deg, alt m AMSL] of the frame origin
+==============================  ============  =========================================
+"""
+
+from dataclasses import dataclass, field
+import json
+import math
+import queue
+import threading
+from typing import Any, Dict, List, Mapping, Optional, Tuple
+
+from diagnostic_msgs.msg import DiagnosticStatus
+from nav_msgs.msg import Path as PathMsg
+import numpy as np
+from rcl_interfaces.msg import ParameterDescriptor, ParameterType, SetParametersResult
+from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.exceptions import ParameterUninitializedException
+from rclpy.parameter import Parameter
+from rclpy.task import Future
+from std_srvs.srv import Trigger
+
+from uav_global_planner.core.errors import InvalidInputError
+from uav_global_planner.core.geodesy import (GeodeticOrigin, MissingDependencyError,
+                                             origin_from_sequence)
+from uav_global_planner.core.mission import (build_mission, END_ACTIONS, FIRMWARES,
+                                             format_from_path, FORMATS, MissionSettings,
+                                             UncertifiableMissionError, write_mission)
+from uav_global_planner.ros import conversions as conv
+from uav_global_planner.ros.qos import LATCHED_QOS
+
+#: Name of the service (relative to the node's namespace).
+EXPORT_SERVICE = 'export_mission'
+
+_DEFAULTS = MissionSettings()
+
+#: name -> (default, description); ``geodetic_origin`` has no default (declared by type).
+MISSION_PARAMETERS: Dict[str, Tuple[Any, str]] = {
+    'mission_file': ('', 'File the export_mission service writes (.plan: QGroundControl, '
+                         '.waypoints: QGC WPL 110); empty: not set.'),
+    'mission_format': ('', "Mission file format: qgc, wpl, or '' to tell it from the "
+                           'extension of mission_file.'),
+    'mission_firmware': (_DEFAULTS.firmware, 'Autopilot of the mission: px4 or ardupilot '
+                                             '(firmwareType, yaw convention, speed items).'),
+    'mission_end': (_DEFAULTS.end, 'After the goal: loiter (hold), land, or rtl (return to '
+                                   'launch at mission_rtl_altitude).'),
+    'mission_acceptance_radius': (_DEFAULTS.acceptance_radius,
+                                  'Waypoint acceptance radius R of the autopilot [m] (PX4 '
+                                  'NAV_ACC_RAD, ArduPilot WPNAV_RADIUS); turns within R are '
+                                  'certified.'),
+    'mission_tracking_allowance': (_DEFAULTS.tracking_allowance,
+                                   'Clearance added to gamma for the autopilot tracking error '
+                                   '[m]; legs and turns keep gamma + this.'),
+    'mission_takeoff_height': (_DEFAULTS.takeoff_height,
+                               'Take-off climb above the start [m]; lowered to the highest '
+                               'climb that keeps the clearance.'),
+    'mission_rtl_altitude': (_DEFAULTS.rtl_altitude,
+                             'Return altitude above home for mission_end rtl [m]; must equal '
+                             "the autopilot's RTL_RETURN_ALT / RTL_ALT."),
+}
+ORIGIN_PARAMETER = 'geodetic_origin'
+ORIGIN_DESCRIPTION = ('WGS84 origin of the planning frame (x east, y north, z up): [latitude '
+                      'deg, longitude deg, altitude m above mean sea level of z = 0].')
+_OWNED = set(MISSION_PARAMETERS) | {ORIGIN_PARAMETER}
+
+
+@dataclass(frozen=True)
+class ExportRequest:
+    """What one export writes, from the parameters.
+
+    Attributes
+    ----------
+    file : str
+    file_format : str
+        ``qgc`` or ``wpl``.
+    settings : MissionSettings
+    origin : GeodeticOrigin
+    """
+
+    file: str
+    file_format: str
+    settings: MissionSettings
+    origin: GeodeticOrigin
+
+
+def settings_from_values(values: Mapping[str, Any]) -> MissionSettings:
+    """Mission settings of the parameter values (ROS-free; the on-set check uses it).
+
+    Raises
+    ------
+    InvalidInputError
+        Naming the parameter.
+    """
+    for name in ('mission_firmware', 'mission_end', 'mission_format'):
+        if not isinstance(values[name], str):
+            raise InvalidInputError(f'{name} must be a string, got {values[name]!r}')
+    if values['mission_format'] not in ('',) + FORMATS:
+        raise InvalidInputError(f"mission_format must be one of '', {', '.join(FORMATS)}, got "
+                                f"{values['mission_format']!r}")
+    if values['mission_end'] not in END_ACTIONS:
+        raise InvalidInputError(f'mission_end must be one of {", ".join(END_ACTIONS)}, got '
+                                f"{values['mission_end']!r}")
+    if values['mission_firmware'] not in FIRMWARES:
+        raise InvalidInputError(f'mission_firmware must be one of {", ".join(FIRMWARES)}, got '
+                                f"{values['mission_firmware']!r}")
+    try:
+        return MissionSettings(
+            acceptance_radius=values['mission_acceptance_radius'],
+            tracking_allowance=values['mission_tracking_allowance'],
+            takeoff_height=values['mission_takeoff_height'],
+            rtl_altitude=values['mission_rtl_altitude'], end=values['mission_end'],
+            firmware=values['mission_firmware'])
+    except InvalidInputError as error:
+        raise InvalidInputError(f'mission_{error}') from None
+
+
+def origin_from_value(value: Any) -> Optional[GeodeticOrigin]:
+    """The origin of a ``geodetic_origin`` value (None: not set).
+
+    Raises
+    ------
+    InvalidInputError
+        When it is set but not three valid numbers.
+    """
+    if value is None:
+        return None
+    return origin_from_sequence(list(value), ORIGIN_PARAMETER)
+
+
+def request_from_values(values: Mapping[str, Any]) -> ExportRequest:
+    """The export request of the parameter values.
+
+    Raises
+    ------
+    InvalidInputError
+        When ``mission_file`` or ``geodetic_origin`` is not set, or a value is invalid.
+    """
+    settings = settings_from_values(values)
+    origin = origin_from_value(values.get(ORIGIN_PARAMETER))
+    file = values['mission_file']
+    if not isinstance(file, str) or not file:
+        raise InvalidInputError('mission_file is not set: ros2 param set <node> mission_file '
+                                '/path/to/mission.plan')
+    if origin is None:
+        raise InvalidInputError('geodetic_origin is not set: ros2 param set <node> '
+                                'geodetic_origin "[LAT, LON, ALT_AMSL]"')
+    file_format = values['mission_format'] or format_from_path(file)
+    return ExportRequest(file, file_format, settings, origin)
+
+
+@dataclass
+class _Export:
+    """One service request between the executor and the planning worker."""
+
+    request: ExportRequest
+    plan: np.ndarray
+    raw: np.ndarray
+    frame_id: str
+    stamp_ns: int
+    future: Future = field(default_factory=Future)
+    outcome: Tuple[bool, str] = (False, '')
+
+
+class MissionExportService:
+    """The ``export_mission`` service and its parameters, composed with the planner node.
+
+    Parameters
+    ----------
+    host : PlanHost
+        The planner node (:class:`~uav_global_planner.ros.nav2_interfaces.PlanHost`): its
+        ``node``, ``submit``, ``current_settings`` and ``publish_diagnostics`` are used.
+
+    Raises
+    ------
+    InvalidInputError
+        When the mission parameters given at start-up are invalid.
+    """
+
+    def __init__(self, host: Any) -> None:
+        self._host = host
+        node = host.node
+        self._node = node
+        self._log = node.get_logger()
+        for name, (default, description) in MISSION_PARAMETERS.items():
+            if not node.has_parameter(name):
+                node.declare_parameter(name, default, ParameterDescriptor(
+                    name=name, description=description))
+        if not node.has_parameter(ORIGIN_PARAMETER):
+            node.declare_parameter(ORIGIN_PARAMETER, Parameter.Type.DOUBLE_ARRAY,
+                                   ParameterDescriptor(
+                                       name=ORIGIN_PARAMETER, description=ORIGIN_DESCRIPTION,
+                                       type=ParameterType.PARAMETER_DOUBLE_ARRAY,
+                                       additional_constraints='three numbers: latitude in '
+                                       '(-90, 90), longitude in [-180, 180], altitude in '
+                                       '[-500, 10000]'))
+        # Start-up values are checked once here (main() reports them as invalid parameters).
+        values = self._values()
+        settings_from_values(values)
+        origin_from_value(values[ORIGIN_PARAMETER])
+        node.add_on_set_parameters_callback(self._validate)
+
+        self._lock = threading.Lock()
+        # Guarded by _lock: the latest plan and unsmoothed plan (stamp [ns], frame, points).
+        self._plan: Optional[Tuple[int, str, np.ndarray]] = None
+        self._raw: Optional[Tuple[int, str, np.ndarray]] = None
+        self._finished: 'queue.SimpleQueue[_Export]' = queue.SimpleQueue()
+        # Reentrant: the coroutine keeps its group busy while the worker builds the mission,
+        # and the node's default group would stall the node's other callbacks meanwhile.
+        self._group = ReentrantCallbackGroup()
+        self._guard = node.create_guard_condition(self._complete_finished, self._group)
+        self._plan_sub = node.create_subscription(PathMsg, 'plan', self._on_plan, LATCHED_QOS,
+                                                  callback_group=self._group)
+        self._raw_sub = node.create_subscription(PathMsg, 'unsmoothed_plan', self._on_raw,
+                                                 LATCHED_QOS, callback_group=self._group)
+        self._service = node.create_service(Trigger, EXPORT_SERVICE, self._on_export,
+                                            callback_group=self._group)
+
+    def destroy(self) -> None:
+        """Destroy the service, the subscriptions and the guard condition (before the node)."""
+        self._node.destroy_service(self._service)
+        self._node.destroy_subscription(self._plan_sub)
+        self._node.destroy_subscription(self._raw_sub)
+        self._node.destroy_guard_condition(self._guard)
+
+    # ---------------------------------------------------------------------------- parameters
+
+    def _values(self, overrides: Optional[Mapping[str, Any]] = None) -> Dict[str, Any]:
+        values: Dict[str, Any] = {}
+        for name in _OWNED:
+            try:
+                values[name] = self._node.get_parameter(name).value
+            except ParameterUninitializedException:
+                values[name] = None
+        values.update(overrides or {})
+        return values
+
+    def _validate(self, parameters: List[Parameter]) -> SetParametersResult:
+        """On-set callback: refuse invalid values of this module's parameters only."""
+        changes = {p.name: p.value for p in parameters if p.name in _OWNED}
+        if not changes:
+            return SetParametersResult(successful=True)
+        try:
+            values = self._values(changes)
+            settings_from_values(values)
+            origin_from_value(values[ORIGIN_PARAMETER])
+        except InvalidInputError as error:
+            self._log.warning(f'parameter change refused: {error}')
+            return SetParametersResult(successful=False, reason=str(error))
+        return SetParametersResult(successful=True)
+
+    # ---------------------------------------------------------------------------- plan intake
+
+    def _on_plan(self, msg: PathMsg) -> None:
+        entry = (conv.time_to_ns(msg.header.stamp), msg.header.frame_id, conv.path_to_points(msg))
+        with self._lock:
+            self._plan = entry
+
+    def _on_raw(self, msg: PathMsg) -> None:
+        entry = (conv.time_to_ns(msg.header.stamp), msg.header.frame_id, conv.path_to_points(msg))
+        with self._lock:
+            self._raw = entry
+
+    # ---------------------------------------------------------------------------- service
+
+    async def _on_export(self, request_msg, response):
+        try:
+            request = request_from_values(self._values())
+        except InvalidInputError as error:
+            return self._answer(response, False, f'not exported: {error}')
+        with self._lock:
+            plan, raw = self._plan, self._raw
+        if plan is None or len(plan[2]) < 2:
+            return self._answer(response, False, 'not exported: no plan in force (none was '
+                                'published on plan yet, or it was withdrawn)')
+        raw_points = raw[2] if raw is not None and raw[0] == plan[0] else np.empty((0, 3))
+        export = _Export(request, plan[2], raw_points, plan[1], plan[0])
+        self._host.submit(lambda planner, snapshot: self._run(export, planner, snapshot))
+        success, message = await export.future
+        return self._answer(response, success, message)
+
+    def _answer(self, response, success: bool, message: str):
+        response.success = bool(success)
+        response.message = message
+        level = DiagnosticStatus.OK if success else DiagnosticStatus.WARN
+        if success:
+            self._log.info(f'{EXPORT_SERVICE}: {message}')
+        else:
+            self._log.warning(f'{EXPORT_SERVICE}: {message}')
+        try:
+            self._host.publish_diagnostics(
+                self._node.get_clock().now().nanoseconds, level,
+                f'{EXPORT_SERVICE}: {"written" if success else "refused"}',
+                {'event': 'mission_export', 'status': 'ok' if success else 'refused',
+                 'message': message})
+        except Exception:  # noqa: BLE001 - the answer matters more than the status line
+            pass
+        return response
+
+    # ---------------------------------------------------------------------------- worker side
+
+    def _run(self, export: _Export, planner: Any, snapshot: Any) -> None:
+        """On the planning worker: build, certify and write the mission; hand the answer back."""
+        try:
+            export.outcome = self._export(export, planner, snapshot)
+        except Exception as error:  # noqa: BLE001 - the client must get an answer
+            self._log.error(f'{EXPORT_SERVICE} failed: {error!r}')
+            export.outcome = (False, f'internal error: {error!r}')
+        self._finished.put(export)
+        try:
+            self._guard.trigger()
+        except Exception:  # noqa: BLE001 - the node is being destroyed; nobody waits
+            pass
+
+    def _export(self, export: _Export, planner: Any, snapshot: Any) -> Tuple[bool, str]:
+        settings = snapshot.settings
+        if export.frame_id != settings.frame_id:
+            return False, (f'not exported: the plan in force is in frame {export.frame_id!r} '
+                           f'but the planner now works in {settings.frame_id!r}')
+        request = export.request
+        try:
+            mission = build_mission(export.plan, planner.obstacles, settings.config,
+                                    request.origin, request.settings, raw_path=export.raw)
+            path = write_mission(mission, request.file, request.file_format)
+        except UncertifiableMissionError as error:
+            return False, f'not exported: no certified mission: {error}'
+        except (InvalidInputError, MissingDependencyError) as error:
+            return False, f'not exported: {error}'
+        clearance = mission.certified_clearance_m
+        return True, json.dumps({
+            'path': str(path), 'format': request.file_format,
+            'firmware': request.settings.firmware, 'waypoints': mission.waypoint_count,
+            'items': len(mission.items), 'required_clearance_m': mission.required_clearance_m,
+            'certified_clearance_m': clearance if math.isfinite(clearance) else None,
+            'plan_stamp_ns': export.stamp_ns})
+
+    def _complete_finished(self) -> None:
+        """Guard-condition callback (executor thread): complete the finished requests."""
+        while True:
+            try:
+                export = self._finished.get_nowait()
+            except queue.Empty:
+                return
+            if not export.future.done():
+                export.future.set_result(export.outcome)
