@@ -4,6 +4,7 @@ The planner nodes run as processes; the tests talk to them only through topics a
 services, as a mapping stack, a vehicle and a goal sender would.
 """
 
+import threading
 import time
 from typing import Dict, Iterator
 
@@ -282,21 +283,33 @@ def test_odometry_after_a_plan_from_the_start_parameter_replans(ros) -> None:
 
 def test_a_plan_the_vehicle_left_behind_is_made_again_from_where_it_is(ros) -> None:
     busy = ros['busy']
-    first = [-8.0, -8.0, 1.0]
-    busy.publish('odom', odom_msg(first))
-    time.sleep(0.5)
-    mark = busy.diagnostics.mark()
-    goal = np.array([8.0, 8.0, 12.0])
-    busy.publish('goal_pose', pose_msg(goal))
-    busy.wait_diag(mark, 'progress', 60.0, what='the plan to be running',
-                   check=lambda v: v['goal'] == conv.format_value(goal))
-    moved = [-4.0, -8.0, 1.0]
-    busy.publish('odom', odom_msg(moved))
-    dropped = busy.wait_diag(mark, 'plan_discarded', 120.0)
-    assert 'vehicle moved' in dropped['reason'], dropped
-    served = busy.wait_diag(mark, 'plan', 120.0)
-    assert served['status'] == 'ok', served
-    assert np.allclose(points_of(busy.plan_for(served))[0], moved)
+    # The vehicle streams its odometry at 20 Hz, as a flight stack does.
+    position = {'now': [-8.0, -8.0, 1.0]}
+    streaming = threading.Event()
+
+    def stream() -> None:
+        while not streaming.is_set():
+            busy.publish('odom', odom_msg(position['now']))
+            time.sleep(0.05)
+    sender = threading.Thread(target=stream, daemon=True)
+    sender.start()
+    try:
+        time.sleep(1.5)
+        mark = busy.diagnostics.mark()
+        goal = np.array([8.0, 8.0, 12.0])
+        busy.publish('goal_pose', pose_msg(goal))
+        busy.wait_diag(mark, 'progress', 60.0, what='the plan to be running',
+                       check=lambda v: v['goal'] == conv.format_value(goal))
+        moved = [-4.0, -8.0, 1.0]
+        position['now'] = moved
+        dropped = busy.wait_diag(mark, 'plan_discarded', 120.0)
+        assert 'vehicle moved' in dropped['reason'], dropped
+        served = busy.wait_diag(mark, 'plan', 120.0)
+        assert served['status'] == 'ok', served
+        assert np.allclose(points_of(busy.plan_for(served))[0], moved)
+    finally:
+        streaming.set()
+        sender.join(5.0)
 
 
 def _retry(attempt, what: str, timeout_s: float = 20.0):
