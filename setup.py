@@ -10,7 +10,13 @@ package_name = 'uav_global_planner'
 setup(
     name=package_name,
     version='0.1.0',
-    packages=find_packages(exclude=['test']),
+    # The library (core, ros, cli), the tools built on it (demo, ROS benchmark), and config/ as
+    # the package data uav_global_planner/config: the shipped scenes and planner.yaml are then
+    # found with importlib.resources wherever pip or colcon installed the package.
+    packages=find_packages(exclude=['test']) + [package_name + '.config'],
+    package_dir={package_name + '.config': 'config'},
+    package_data={package_name + '.config': ['*.yaml', 'scenes/*.yaml']},
+    # The share copy is what ros2 launch files and --params-file point at.
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
@@ -26,7 +32,8 @@ setup(
                     'maps': ['pypcd4', 'plyfile', 'laspy', 'lazrs', 'octomap-python'],
                     # The interactive 3D view of uav-plan plot --html.
                     'plot': ['plotly']},
-    zip_safe=True,
+    # The shipped scenes are read as files (importlib.resources paths), so never as a zip.
+    zip_safe=False,
     maintainer='uav_global_planner maintainers',
     maintainer_email='maintainers@uav-global-planner.invalid',
     description='3D global path planner for quadcopters with a ROS 2 node.',
@@ -36,7 +43,12 @@ setup(
             'uav-plan = uav_global_planner.cli.main:main',
             'planner_node = uav_global_planner.ros.planner_node:main',
             'scene_publisher = uav_global_planner.ros.scene_publisher:main',
-            'uav-demo = uav_global_planner.ros.demo:main',
+            'uav-demo = uav_global_planner_tools.demo:main',
+        ],
+        # Figures that the tools add to uav-plan bench (its --ros flag), so that the
+        # command-line tool runs them without importing the tools.
+        'uav_global_planner.bench': [
+            'ros = uav_global_planner_tools.latency_bench.uav_plan_bench:ros_figures',
         ],
     },
 )

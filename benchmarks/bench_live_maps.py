@@ -22,6 +22,9 @@ stamp -> its map in the planner's hands (reported by the node), clouds published
 node / taken in / superseded, obstacle on the plan in force -> empty plan received (withdrawn)
 and -> the next plan received (replaced), parameter round trips, node CPU [cores], and whether
 the vehicle ever flew into a dropped obstacle. Figures only; nothing is asserted.
+
+One script, though long: the mapping stack, the vehicle and the goal sender are three threads
+of one scenario sharing its clock and records; its helpers are its own.
 """
 
 import argparse
@@ -47,9 +50,12 @@ from sensor_msgs.msg import PointCloud2
 from visualization_msgs.msg import Marker, MarkerArray
 
 from uav_global_planner.ros import conversions as conv
-from uav_global_planner.ros.background_node import BackgroundNode, choose_domain_id
+from uav_global_planner.ros.background_node import BackgroundNode
 from uav_global_planner.ros.qos import (CLOUD_QOS, COMMAND_QOS, LATCHED_QOS, MONITOR_QOS,
                                         OBSTACLES_QOS, SENSOR_QOS)
+from uav_global_planner_tools.domains import choose_domain_id
+from uav_global_planner_tools.processes import (NodeProcess, NodeProcessError, planner_command,
+                                                ros_environment)
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -250,14 +256,6 @@ class Observer:
         return ahead[int(np.searchsorted(reach, distance))]
 
 
-def goal_pose(position) -> PoseStamped:
-    msg = PoseStamped()
-    msg.header.frame_id = 'map'
-    msg.pose.position.x, msg.pose.position.y, msg.pose.position.z = (float(v) for v in position)
-    msg.pose.orientation.w = 1.0
-    return msg
-
-
 def street_goals(count: int, seed: int = 4) -> List[np.ndarray]:
     """Points of the town's streets at 2-8 m, 3 m from every building."""
     scene = outdoor_scenes.town400()
@@ -272,37 +270,25 @@ def street_goals(count: int, seed: int = 4) -> List[np.ndarray]:
     return goals
 
 
-def start_node(domain_id: int, log_dir: str) -> subprocess.Popen:
+def start_node(domain_id: int, log_dir: str) -> NodeProcess:
     scene = outdoor_scenes.town400()
     config = scene.config()
-    env = dict(os.environ, ROS_DOMAIN_ID=str(domain_id), ROS_LOG_DIR=log_dir,
-               ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST', PYTHONUNBUFFERED='1')
-
-    def triple(values) -> str:
-        return '[' + ', '.join(repr(float(v)) for v in values) + ']'
-    command = [sys.executable, '-m', 'uav_global_planner.ros.planner_node', '--ros-args',
-               '--params-file', str(REPO / 'config' / 'planner.yaml'),
-               '-r', f'__ns:={NAMESPACE}',
-               '-p', f'bounds.min:={triple(config.bounds_min)}',
-               '-p', f'bounds.max:={triple(config.bounds_max)}',
-               '-p', f'resolution:={config.resolution!r}',
-               '-p', f'safety_margin:={config.safety_margin!r}',
-               '-p', f'adaptive_threshold:={config.adaptive_threshold!r}',
-               '-p', f'start:={triple(scene.start)}',
-               '-p', 'max_speed_horizontal:=3.0']
-    process = subprocess.Popen(command, env=env, stdout=subprocess.PIPE,
-                               stderr=subprocess.STDOUT, text=True)
-    lines: List[str] = []
-    deadline = time.monotonic() + 180.0
-    for line in process.stdout:  # type: ignore[union-attr]
-        lines.append(line)
-        if 'planner ready' in line:
-            break
-        if time.monotonic() > deadline or process.poll() is not None:
-            raise RuntimeError('planner_node did not start:\n' + ''.join(lines))
-    threading.Thread(target=lambda: [None for _ in process.stdout],  # type: ignore[union-attr]
-                     daemon=True).start()
-    return process
+    parameters = {'bounds.min': [float(v) for v in config.bounds_min],
+                  'bounds.max': [float(v) for v in config.bounds_max],
+                  'resolution': float(config.resolution),
+                  'safety_margin': float(config.safety_margin),
+                  'adaptive_threshold': float(config.adaptive_threshold),
+                  'start': [float(v) for v in scene.start], 'max_speed_horizontal': 3.0}
+    node = NodeProcess(
+        planner_command(namespace=NAMESPACE, parameters=parameters,
+                        params_file=REPO / 'config' / 'planner.yaml'),
+        ros_environment(domain_id, Path(log_dir)))
+    try:
+        node.wait_ready(180.0)
+    except NodeProcessError as error:
+        node.kill()
+        raise RuntimeError(f'planner_node did not start: {error}') from None
+    return node
 
 
 def percentile(values: List[float], q: float) -> Optional[float]:
@@ -368,7 +354,7 @@ def measure(goals: int, domain_id: int) -> Dict[str, Any]:
             mapper.stdin.flush()  # type: ignore[union-attr]
 
         client = BackgroundNode('live_maps_bench_client', domain_id)
-        process = psutil.Process(node.pid)
+        process = psutil.Process(node.process.pid)
         try:
             observer = Observer(client, np.asarray(scene.start))
             observer.flying.start()
@@ -395,7 +381,7 @@ def measure(goals: int, domain_id: int) -> Dict[str, Any]:
             for number, goal in enumerate(street_goals(goals)):
                 plan_mark = len(observer.plans)
                 sent = time.monotonic()
-                observer.goal_pub.publish(goal_pose(goal))
+                observer.goal_pub.publish(conv.pose_stamped(goal, 'map', 0))
                 plan = observer.wait_plan(plan_mark, lambda p, g=goal: len(p['points']) > 1
                                           and np.linalg.norm(p['points'][-1] - g) < 1e-3,
                                           GOAL_PERIOD + 10.0)
@@ -430,11 +416,10 @@ def measure(goals: int, domain_id: int) -> Dict[str, Any]:
             client.close()
             if mapper.poll() is None:
                 mapper.kill()
-            node.terminate()
             try:
-                node.wait(15.0)
-            except subprocess.TimeoutExpired:
-                node.kill()
+                node.stop()
+            except NodeProcessError as error:
+                print(f'bench_live_maps: {error}', file=sys.stderr)
 
 
 def drop(observer: Observer, command, mapper_reply, mapper_lines: List[str], kind: str,

@@ -36,9 +36,10 @@ from rclpy.action import ActionClient
 from uav_global_planner.core.result import polyline_length
 from uav_global_planner.core.scene import find_scene, load_scene, Scene
 from uav_global_planner.ros import conversions as conv
-from uav_global_planner.ros.background_node import choose_domain_id
-from uav_global_planner.ros.latency_bench import _Session, _summary, BenchError
 from uav_global_planner.ros.nav2_client import ExecutorCalls, round_trip
+from uav_global_planner_tools.domains import choose_domain_id
+from uav_global_planner_tools.latency_bench.measure import summary as _summary
+from uav_global_planner_tools.latency_bench.session import BenchError, Session as _Session
 
 try:
     from nav2_msgs.action import ComputePathThroughPoses, ComputePathToPose

@@ -13,9 +13,7 @@ until the near goal's plan arrives. Both include the DDS round trip. Figures onl
 
 import argparse
 import json
-import os
 from pathlib import Path
-import subprocess
 import sys
 import tempfile
 import threading
@@ -26,20 +24,16 @@ from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped
 import numpy as np
 
-from uav_global_planner.ros.background_node import BackgroundNode, choose_domain_id
+from uav_global_planner.ros import conversions as conv
+from uav_global_planner.ros.background_node import BackgroundNode
 from uav_global_planner.ros.qos import COMMAND_QOS, MONITOR_QOS
+from uav_global_planner_tools.domains import choose_domain_id
+from uav_global_planner_tools.processes import (NodeProcess, NodeProcessError, planner_command,
+                                                ros_environment)
 
 REPO = Path(__file__).resolve().parents[1]
 NAMESPACE = '/preempt_bench'
 FAR, NEAR = (9.0, 9.0, 14.0), (-2.0, -7.0, 1.0)
-
-
-def _goal(position) -> PoseStamped:
-    msg = PoseStamped()
-    msg.header.frame_id = 'map'
-    msg.pose.position.x, msg.pose.position.y, msg.pose.position.z = (float(v) for v in position)
-    msg.pose.orientation.w = 1.0
-    return msg
 
 
 class _Diagnostics:
@@ -72,24 +66,20 @@ class _Diagnostics:
                 self.changed.wait(left)
 
 
-def _start_node(domain_id: int, log_dir: str) -> subprocess.Popen:
-    env = dict(os.environ, ROS_DOMAIN_ID=str(domain_id), ROS_LOG_DIR=log_dir,
-               ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST', PYTHONUNBUFFERED='1')
-    command = [sys.executable, '-m', 'uav_global_planner.ros.planner_node', '--ros-args',
-               '--params-file', str(REPO / 'config' / 'planner.yaml'),
-               '-r', f'__ns:={NAMESPACE}', '-p', 'resolution:=0.1', '-p', 'algorithm:=dijkstra',
-               '-p', 'max_planning_time:=60.0']
-    process = subprocess.Popen(command, env=env, stdout=subprocess.PIPE,
-                               stderr=subprocess.STDOUT, text=True)
-    deadline = time.monotonic() + 120.0
-    for line in process.stdout:  # type: ignore[union-attr]
-        if 'planner ready' in line:
-            break
-        if time.monotonic() > deadline:
-            break
-    threading.Thread(target=lambda: [None for _ in process.stdout],  # type: ignore[union-attr]
-                     daemon=True).start()
-    return process
+def _start_node(domain_id: int, log_dir: str) -> NodeProcess:
+    node = NodeProcess(
+        planner_command(namespace=NAMESPACE, params_file=REPO / 'config' / 'planner.yaml',
+                        parameters={'resolution': 0.1, 'algorithm': 'dijkstra',
+                                    'max_planning_time': 60.0,
+                                    # Open air: no map source is published.
+                                    'plan_without_map': True}),
+        ros_environment(domain_id, Path(log_dir)))
+    try:
+        node.wait_ready(120.0)
+    except NodeProcessError:
+        node.kill()
+        raise
+    return node
 
 
 def measure(rounds: int, domain_id: int) -> Dict[str, Optional[float]]:
@@ -109,19 +99,18 @@ def measure(rounds: int, domain_id: int) -> Dict[str, Optional[float]]:
             cancel_ms, replace_ms = [], []
             for _ in range(rounds):
                 mark = len(diagnostics.entries)
-                goals.publish(_goal(FAR))
+                goals.publish(conv.pose_stamped(FAR, 'map', 0))
                 diagnostics.wait(mark, 'progress', 30.0)
                 mark = len(diagnostics.entries)
                 sent = time.monotonic()
-                goals.publish(_goal(NEAR))
+                goals.publish(conv.pose_stamped(NEAR, 'map', 0))
                 cancelled = diagnostics.wait(mark, 'plan_cancelled', 30.0)
                 planned = diagnostics.wait(mark, 'plan', 30.0)
                 cancel_ms.append(1e3 * (float(cancelled['_arrived']) - sent))
                 replace_ms.append(1e3 * (float(planned['_arrived']) - sent))
         finally:
             client.close()
-            process.terminate()
-            process.wait(15.0)
+            process.stop()
     return {'rounds': rounds,
             'cancel_median_ms': float(np.median(cancel_ms)), 'cancel_max_ms': max(cancel_ms),
             'replaced_median_ms': float(np.median(replace_ms)),

@@ -7,6 +7,6 @@ repo_root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 # shellcheck source=venv.sh
 source "$repo_root/scripts/venv.sh"
 cd "$repo_root"
-# A domain of its own, so the demo never talks to another ROS graph on this machine.
-export ROS_DOMAIN_ID="${ROS_DOMAIN_ID:-$(( ($$ % 90) + 10 ))}"
+# uav-demo picks a ROS domain that nothing else on this machine uses (--join-domain to share
+# $ROS_DOMAIN_ID), so it never talks to another ROS graph.
 exec uav-demo "$@"

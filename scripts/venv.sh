@@ -14,27 +14,38 @@ fi
 
 stamp="$venv/.requirements.sha256"
 wanted="$(cat "$repo_root/requirements.txt" "$repo_root/setup.py" | sha256sum | cut -d' ' -f1)"
-if [ ! -x "$venv/bin/python" ] || [ "$(cat "$stamp" 2>/dev/null)" != "$wanted" ]; then
-  echo "Setting up $venv (pinned versions from requirements.txt) ..."
-  log="$(mktemp -t uav_planner_pip.XXXXXX)"
-  if ! { "$python_bin" -m venv "$venv" \
-         && "$venv/bin/python" -m pip install --upgrade pip \
-         && "$venv/bin/python" -m pip install -r "$repo_root/requirements.txt" \
-         && "$venv/bin/python" -m pip install --no-deps --no-build-isolation -e "$repo_root"; \
-       } >"$log" 2>&1; then
-    tail -n 40 "$log" >&2
-    echo "error: installing into $venv failed (full log: $log)" >&2
-    return 1 2>/dev/null || exit 1
+_uav_planner_setup() {
+  # Runs under the lock: another shell may have finished the same install meanwhile.
+  if [ ! -x "$venv/bin/python" ] || [ "$(cat "$stamp" 2>/dev/null)" != "$wanted" ]; then
+    echo "Setting up $venv (pinned versions from requirements.txt) ..."
+    local log
+    log="$(mktemp -t uav_planner_pip.XXXXXX)"
+    if ! { "$python_bin" -m venv "$venv" \
+           && "$venv/bin/python" -m pip install --upgrade pip \
+           && "$venv/bin/python" -m pip install -r "$repo_root/requirements.txt" \
+           && "$venv/bin/python" -m pip install --no-deps --no-build-isolation -e "$repo_root"; \
+         } >"$log" 2>&1; then
+      tail -n 40 "$log" >&2
+      echo "error: installing into $venv failed (full log: $log)" >&2
+      return 1
+    fi
+    rm -f "$log"
+    echo "$wanted" > "$stamp"
   fi
-  rm -f "$log"
-  echo "$wanted" > "$stamp"
+  # Nav2's planner actions (nav2_msgs is not on PyPI), built from interfaces/ into the venv
+  # once: the script keeps its own stamp and returns at once when nothing changed. Without them
+  # the planner node still runs, with its topics and GetPlan.
+  if ! bash "$repo_root/scripts/build_interfaces.sh" "$venv"; then
+    echo "warning: nav2_msgs not built; planner_node starts without its Nav2 action servers" >&2
+  fi
+}
+# One install at a time: shells that source this at once (parallel test runs) wait for the
+# first one instead of installing into the same venv together.
+if ! ( flock 9 && _uav_planner_setup ) 9>"$venv.lock"; then
+  unset -f _uav_planner_setup
+  return 1 2>/dev/null || exit 1
 fi
-# Nav2's planner actions (nav2_msgs is not on PyPI), built from interfaces/ into the venv once:
-# the script keeps its own stamp and returns at once when nothing changed. Without them the
-# planner node still runs, with its topics and GetPlan.
-if ! bash "$repo_root/scripts/build_interfaces.sh" "$venv"; then
-  echo "warning: nav2_msgs not built; planner_node starts without its Nav2 action servers" >&2
-fi
+unset -f _uav_planner_setup
 
 export PATH="$venv/bin:$PATH"
 export VIRTUAL_ENV="$venv"

@@ -1,18 +1,20 @@
 """Helpers for tests that run ROS nodes in real processes and talk to them over DDS.
 
-Every process gets its own ``ROS_DOMAIN_ID`` (derived from the test process id, never 0),
+The processes are started by :mod:`uav_global_planner_tools.processes`, as the demo and the
+benchmark start theirs: each gets a ROS domain of its own (:func:`unique_domain_id`),
 ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` and a temporary ``ROS_LOG_DIR``, so concurrent test
 runs on one machine do not see each other. The test side uses its own rclpy ``Context`` per
 client, spun on a background thread, and never installs signal handlers (pytest keeps Ctrl-C).
+
+Domain ids: ``ROS_DOMAIN_ID=N`` in the environment of pytest makes the tests take N, N+1, ...
+(within the safe ids 1-101 and 215-232, wrapping); without it they start at a point derived
+from the process id. Ids that another process on this machine is using are skipped, so two
+checkouts tested side by side (best given bases far apart, e.g. 10 and 60) never share one.
 """
 
 import itertools
 import os
 from pathlib import Path
-import signal
-import subprocess
-import sys
-import tempfile
 import threading
 import time
 from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence
@@ -32,24 +34,29 @@ from visualization_msgs.msg import Marker, MarkerArray
 from uav_global_planner.core.planner import densify
 from uav_global_planner.ros import conversions as conv
 from uav_global_planner.ros.background_node import BackgroundNode
-# Re-exported for the tests, which import their QoS from the harness.
+# Re-exported for the tests, which import these from the harness.
+from uav_global_planner.ros.names import NODE_NAME, READY_TEXT  # noqa: F401
 from uav_global_planner.ros.qos import (CLOUD_QOS, LATCHED_QOS, MONITOR_QOS,  # noqa: F401
                                         OBSTACLES_QOS, SENSOR_QOS)
+from uav_global_planner_tools import processes
+from uav_global_planner_tools.domains import (candidate_domains, domain_in_use,
+                                              environment_domain_id, SAFE_DOMAIN_IDS)
+from uav_global_planner_tools.processes import (localhost_discovery, NodeProcess,  # noqa: F401
+                                                NodeProcessError, ros_environment)
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 PLANNER_YAML = REPO_ROOT / 'config' / 'planner.yaml'
-READY_TEXT = 'planner ready'
-NODE_NAME = 'global_planner'
 
 # Start-up of a node: Python imports, loading the cached kernels, building the grid. Generous,
 # because a cold numba cache compiles for tens of seconds on a slow machine.
 STARTUP_TIMEOUT_S = 120.0
 
+#: First domain id of this run's tests: ``$ROS_DOMAIN_ID`` or None (derived from the pid).
+DOMAIN_BASE = environment_domain_id()
 
-_domain_counter = itertools.count()
-
-# Domain ids that are safe on Linux with the default DDS port mapping; 0 is everyone's default.
-_DOMAIN_IDS = tuple(range(1, 102)) + tuple(range(215, 233))
+# Every safe id once from the base on, then around again; each call of unique_domain_id()
+# takes the next one that no process on this machine is using.
+_domains = itertools.cycle(list(candidate_domains(DOMAIN_BASE)))
 
 #: Namespace of this test run's planner nodes. Should another test run on this machine draw the
 #: same domain id at the same time, its topics still do not cross ours.
@@ -57,168 +64,29 @@ RUN_NAMESPACE = f'/uav_test_{os.getpid()}'
 
 
 def unique_domain_id() -> int:
-    """A ROS domain id that differs per test process and per call (never 0).
+    """A ROS domain id for one test: the next one after the last call that is free (never 0).
 
-    The process id picks a starting point among the safe ids, so concurrent test runs most
-    likely differ; each call then takes the next id, so the tests of one run never share one.
+    Raises
+    ------
+    RuntimeError
+        When every safe domain id is in use on this machine.
     """
-    start = (os.getpid() * 7919) % len(_DOMAIN_IDS)
-    return _DOMAIN_IDS[(start + next(_domain_counter)) % len(_DOMAIN_IDS)]
-
-
-def ros_environment(domain_id: int) -> Dict[str, str]:
-    """Environment of a child process: own domain, localhost discovery, temporary logs."""
-    env = dict(os.environ)
-    env['ROS_DOMAIN_ID'] = str(domain_id)
-    env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
-    env.pop('ROS_STATIC_PEERS', None)
-    env['ROS_LOG_DIR'] = tempfile.mkdtemp(prefix='uav_planner_test_roslog_')
-    env.setdefault('RMW_IMPLEMENTATION', 'rmw_fastrtps_cpp')
-    env['PYTHONUNBUFFERED'] = '1'
-    env['RCUTILS_COLORIZED_OUTPUT'] = '0'
-    return env
-
-
-class NodeProcess:
-    """A ROS process started with merged stdout/stderr, read line by line on a thread.
-
-    Parameters
-    ----------
-    command : sequence of str
-    env : mapping
-        Full environment of the child (see :func:`ros_environment`).
-    """
-
-    def __init__(self, command: Sequence[str], env: Mapping[str, str]) -> None:
-        self.command = list(command)
-        self._lines: List[str] = []
-        self._changed = threading.Condition()
-        self.process = subprocess.Popen(
-            self.command, env=dict(env), stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-            stdin=subprocess.DEVNULL, text=True, bufsize=1,
-            # Own session: a Ctrl-C in the terminal goes to pytest, which stops us cleanly.
-            start_new_session=True)
-        self._reader = threading.Thread(target=self._read, daemon=True)
-        self._reader.start()
-
-    def _read(self) -> None:
-        assert self.process.stdout is not None
-        for line in self.process.stdout:
-            with self._changed:
-                self._lines.append(line.rstrip('\n'))
-                self._changed.notify_all()
-        with self._changed:
-            self._changed.notify_all()
-
-    @property
-    def output(self) -> str:
-        """Everything the process printed so far."""
-        with self._changed:
-            return '\n'.join(self._lines)
-
-    def mark(self) -> int:
-        """Number of output lines so far; pass it as ``after`` to look only at newer ones."""
-        with self._changed:
-            return len(self._lines)
-
-    def wait_for_output(self, text: str, timeout_s: float, after: int = 0) -> str:
-        """Wait until a line containing ``text`` appears (at index >= ``after``); return it.
-
-        Raises
-        ------
-        AssertionError
-            On timeout or when the process exits first, with its output.
-        """
-        deadline = time.monotonic() + timeout_s
-        with self._changed:
-            while True:
-                found = [line for line in self._lines[after:] if text in line]
-                if found:
-                    return found[0]
-                if self.process.poll() is not None and not self._reader.is_alive():
-                    raise AssertionError(
-                        f'process exited with {self.process.returncode} before printing '
-                        f'{text!r}:\n{self.output_unlocked()}')
-                remaining = deadline - time.monotonic()
-                if remaining <= 0:
-                    raise AssertionError(
-                        f'no {text!r} within {timeout_s} s:\n{self.output_unlocked()}')
-                self._changed.wait(min(remaining, 0.2))
-
-    def output_unlocked(self) -> str:
-        """Output without taking the lock (for use while holding it)."""
-        return '\n'.join(self._lines)
-
-    def stop(self, sig: int = signal.SIGINT, timeout_s: float = 15.0) -> int:
-        """Send ``sig`` and wait for the exit; kill after ``timeout_s``.
-
-        Returns
-        -------
-        int
-            The exit code.
-
-        Raises
-        ------
-        AssertionError
-            When the process had to be killed.
-        """
-        if self.process.poll() is None:
-            self.process.send_signal(sig)
-            try:
-                self.process.wait(timeout_s)
-            except subprocess.TimeoutExpired:
-                self.process.kill()
-                self.process.wait()
-                self._reader.join(5.0)
-                raise AssertionError(
-                    f'process ignored signal {sig} for {timeout_s} s:\n{self.output}') from None
-        self._reader.join(5.0)
-        return self.process.returncode
-
-    def kill(self) -> None:
-        """Kill the process if it still runs (fixture clean-up after a failed test)."""
-        if self.process.poll() is None:
-            self.process.kill()
-            self.process.wait()
+    for _ in range(len(SAFE_DOMAIN_IDS)):
+        candidate = next(_domains)
+        if not domain_in_use(candidate):
+            return candidate
+    raise RuntimeError('every safe ROS domain id is in use on this machine')
 
 
 def planner_command(namespace: Optional[str] = None,
                     parameters: Optional[Mapping[str, Any]] = None,
                     params_file: Optional[Path] = PLANNER_YAML,
                     executable: Optional[str] = None) -> List[str]:
-    """Command line of a planner node.
+    """Command line of a planner node; the checkout's config/planner.yaml by default.
 
-    Parameters
-    ----------
-    namespace : str, optional
-        ROS namespace, for example ``'/second'``.
-    parameters : mapping, optional
-        ``-p name:=value`` overrides; values are written in YAML syntax.
-    params_file : Path, optional
-        ``--params-file``; the shipped config/planner.yaml by default.
-    executable : str, optional
-        An installed ``planner_node`` script; default ``python -m`` on the module.
+    See :func:`uav_global_planner_tools.processes.planner_command`.
     """
-    command = ([executable] if executable
-               else [sys.executable, '-m', 'uav_global_planner.ros.planner_node'])
-    command.append('--ros-args')
-    if params_file is not None:
-        command += ['--params-file', str(params_file)]
-    if namespace:
-        command += ['-r', f'__ns:={namespace}']
-    for name, value in (parameters or {}).items():
-        command += ['-p', f'{name}:={_yaml_value(value)}']
-    return command
-
-
-def _yaml_value(value: Any) -> str:
-    if isinstance(value, bool):
-        return 'true' if value else 'false'
-    if isinstance(value, float):
-        return repr(value)
-    if isinstance(value, (list, tuple)):
-        return '[' + ', '.join(_yaml_value(v) for v in value) + ']'
-    return str(value)
+    return processes.planner_command(namespace, parameters, params_file, executable)
 
 
 def start_planner(domain_id: int, wait: bool = True, **options: Any) -> NodeProcess:
@@ -227,7 +95,7 @@ def start_planner(domain_id: int, wait: bool = True, **options: Any) -> NodeProc
     if wait:
         try:
             node.wait_for_output(READY_TEXT, STARTUP_TIMEOUT_S)
-        except AssertionError:
+        except NodeProcessError:
             node.kill()
             raise
     return node
@@ -239,11 +107,7 @@ def scene_publisher_command(scene: str, namespace: Optional[str] = None,
 
     By default it publishes only the obstacles and keeps running, as a map server would.
     """
-    command = [sys.executable, '-m', 'uav_global_planner.ros.scene_publisher', str(scene),
-               *options, '--ros-args']
-    if namespace:
-        command += ['-r', f'__ns:={namespace}']
-    return command
+    return processes.scene_publisher_command(scene, namespace, options)
 
 
 def start_scene_publisher(domain_id: int, scene: str, namespace: Optional[str] = None,
@@ -335,7 +199,7 @@ class RosClient:
 
     def __init__(self, domain_id: int, name: str = 'test_client') -> None:
         # The test process is not started through ros_environment(); set what DDS reads here.
-        os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+        localhost_discovery()
         self._background = BackgroundNode(name, domain_id)
         self.context = self._background.context
         self.node = self._background.node

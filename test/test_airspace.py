@@ -4,6 +4,9 @@ planned curves that keep gamma from every fence wall and zone.
 Distances are checked against formulas written here independently of the compiled kernels
 (numpy segment distances, matplotlib's point-in-polygon test, closest points of the solids)
 and, for prisms, against dense samples of the solid's surface.
+
+One file, though long: the independent reference formulas and the random-airspace generator at
+the top serve the distance, inflation and planned-curve tests alike.
 """
 
 import copy
@@ -393,7 +396,8 @@ def test_scene_keys_geofence_cost_and_vehicle():
 
 
 @pytest.mark.parametrize('key, value, message', [
-    ('cost', {'climb_weight': -1.0}, r'^cost\.climb_weight: must be in \[0, 100\], got -1\.0'),
+    ('cost', {'climb_weight': -1.0},
+     r'^cost\.climb_weight: must be in \[0\.0, 100\.0\], got -1\.0'),
     ('cost', {'climb': 2.0}, r'^cost: unknown key\(s\) climb'),
     ('cost', {'descent_weight': 'low'}, r'^cost\.descent_weight: must be a number'),
     ('vehicle', {'mass': 0.0}, r'^vehicle\.mass: must be in \(0\.0, 1000\.0\]'),

@@ -75,6 +75,13 @@ def test_install_space_layout(workspace, repo_root):
     assert (prefix / 'share' / 'ament_index' / 'resource_index' / 'packages' / PACKAGE).is_file()
     for script in ('planner_node', 'scene_publisher', 'uav-demo'):
         assert os.access(prefix / 'lib' / PACKAGE / script, os.X_OK), script
+    # The package data beside the modules (what the core finds the shipped scenes by), and the
+    # tools package that uav-demo runs.
+    site = prefix / 'lib' / f'python{sys.version_info.major}.{sys.version_info.minor}' / \
+        'site-packages'
+    assert (site / PACKAGE / 'config' / 'scenes' / 'paper_medium.yaml').is_file()
+    assert (site / PACKAGE / 'config' / 'planner.yaml').is_file()
+    assert (site / 'uav_global_planner_tools' / 'demo.py').is_file()
     for output in ('build', 'install', 'log'):
         assert not (repo_root / output).exists(), f'colcon wrote {output}/ into the checkout'
 

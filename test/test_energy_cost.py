@@ -10,9 +10,9 @@ from dataclasses import replace
 import itertools
 import math
 
+from helpers.scenes import free_graph
 import numpy as np
 import pytest
-from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import shortest_path
 
 from uav_global_planner.core import search as search_module
@@ -45,24 +45,8 @@ def step_cost(offset, resolution: float, climb: float, descent: float) -> float:
 def weighted_graph_distances(blocked: np.ndarray, resolution: float, climb: float,
                              descent: float, source: int) -> np.ndarray:
     """Cheapest directed 26-connected cost [m] from flat node ``source`` to every node."""
-    shape = blocked.shape
-    ids = np.arange(blocked.size).reshape(shape)
-    free = ~blocked
-    rows, cols, weights = [], [], []
-    for offset in itertools.product((-1, 0, 1), repeat=3):
-        if offset == (0, 0, 0):
-            continue
-        src = tuple(slice(max(0, -s), n - max(0, s)) for s, n in zip(offset, shape))
-        dst = tuple(slice(max(0, s), n - max(0, -s)) for s, n in zip(offset, shape))
-        both = free[src] & free[dst]
-        rows.append(ids[src][both])
-        cols.append(ids[dst][both])
-        weights.append(np.full(int(both.sum()), step_cost(offset, resolution, climb, descent)))
-    # Zero-cost moves (a vertical step at weight 0) must stay edges: csgraph drops explicit
-    # zeros, so they get the smallest positive number instead (far below the tolerance).
-    values = np.maximum(np.concatenate(weights), 1e-300)
-    graph = coo_matrix((values, (np.concatenate(rows), np.concatenate(cols))),
-                       shape=(blocked.size, blocked.size)).tocsr()
+    graph = free_graph(blocked, lambda offset: step_cost(offset, resolution, climb, descent),
+                       directed=True)
     return shortest_path(graph, method='D', directed=True, indices=source)
 
 
@@ -200,7 +184,8 @@ def test_config_refuses_bad_weights(field, value, message):
 
 def test_search_refuses_negative_weights():
     workspace = SearchWorkspace(np.zeros((3, 3, 3), dtype=bool))
-    with pytest.raises(InvalidInputError, match='climb_weight must be a finite number >= 0'):
+    with pytest.raises(InvalidInputError,
+                       match=r'climb_weight must be in \[0\.0, 100\.0\], got -1\.0'):
         workspace.search((0, 0, 0), (2, 2, 2), 'octile', 0.5, 1.0, climb_weight=-1.0)
 
 
@@ -210,7 +195,8 @@ def _trajectory(times, positions) -> Trajectory:
     times = np.asarray(times, dtype=np.float64)
     positions = np.asarray(positions, dtype=np.float64)
     velocities = np.gradient(positions, times, axis=0)
-    return Trajectory(times, positions, velocities, np.gradient(velocities, times, axis=0))
+    return Trajectory(times=times, positions=positions, velocities=velocities,
+                      accelerations=np.gradient(velocities, times, axis=0))
 
 
 def test_level_flight_costs_hover_power_times_flight_time():
@@ -250,7 +236,7 @@ def test_a_planned_trajectory_has_an_energy_estimate():
 
 @pytest.mark.parametrize('data, message', [
     ({'mass': -1.0}, r'^vehicle\.mass: must be in \(0\.0, 1000\.0\], got -1\.0'),
-    ({'hover_power': math.inf}, r'^vehicle\.hover_power: must be in'),
+    ({'hover_power': math.inf}, r'^vehicle\.hover_power: must be finite, got inf'),
     ({'mass': True}, r'^vehicle\.mass: must be a number'),
     ({'weight': 2.0}, r'^vehicle: unknown key\(s\) weight'),
     ([1.5, 180.0], r'^vehicle: must be a mapping'),

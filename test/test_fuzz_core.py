@@ -30,6 +30,10 @@ Every property is checked independently of the planner's own bookkeeping:
 The runs are derandomized (the same examples on every machine, no example database) and have no
 deadline; the file runs in about 10 s. The regression tests at the end pin the bugs the fuzzing
 found.
+
+One file, though long: the strategies, the independent oracles and the properties share one
+scene generator and are read together; split, each part would import the others' private
+builders.
 """
 
 import math
@@ -557,7 +561,7 @@ def test_far_reaching_box_is_inflated():
 def test_parabola_through_three_knots_stays_inside_the_bounds():
     # Bug: a not-a-knot spline through three knots is a parabola whose cubic coefficient is
     # rounding noise (-8e-17); the textbook quadratic formula in
-    # smoothing._bounds_violations lost its stationary point to cancellation, so the curve left
+    # repair._bounds_violations lost its stationary point to cancellation, so the curve left
     # the bounds (here 6.5 mm below y_min; with z, under the ground) unseen. Fixed with the
     # numerically stable root formula.
     config = PlannerConfig(bounds_min=(-0.75, -0.75, -1.25),

@@ -64,7 +64,7 @@ def test_invalid_grids_are_refused_with_the_reason(lo, hi, resolution, words):
 
 def test_voxel_cap_fails_before_allocating():
     # A typo of 0.001 m would be 8e12 nodes: refused at once, naming the cap.
-    with pytest.raises(InvalidInputError, match='exceeds max_voxels = 100000000'):
+    with pytest.raises(InvalidInputError, match='exceeds max_voxels = 1200000000'):
         VoxelGrid.from_bounds([-10, -10, 0], [10, 10, 15], 0.001)
     with pytest.raises(InvalidInputError, match='exceeds max_voxels = 1000'):
         VoxelGrid.from_bounds([0, 0, 0], [10, 10, 10], 0.5, max_voxels=1000)

@@ -368,7 +368,7 @@ def test_max_voxels_in_a_scene_file(tmp_path):
     for value in (1.5e8, True, '100'):
         with pytest.raises(InvalidInputError, match='max_voxels: must be an integer'):
             parse_scene({**document, 'max_voxels': value})
-    with pytest.raises(InvalidInputError, match='max_voxels must be >= 1, got 0'):
+    with pytest.raises(InvalidInputError, match='max_voxels: must be >= 1, got 0'):
         parse_scene({**document, 'max_voxels': 0})
 
 

@@ -2,6 +2,8 @@
 
 import math
 
+from diagnostic_msgs.msg import DiagnosticStatus
+from helpers.ros_messages import duration_to_seconds
 from nav_msgs.msg import Odometry
 import numpy as np
 import pytest
@@ -69,7 +71,7 @@ def test_odometry_uses_header_frame():
 def test_time_round_trip():
     stamp_ns = 1_700_000_000_123_456_789
     assert conv.time_to_ns(conv.time_from_ns(stamp_ns)) == stamp_ns
-    assert conv.duration_to_seconds(conv.duration_from_seconds(2.5)) == 2.5
+    assert duration_to_seconds(conv.duration_from_seconds(2.5)) == 2.5
 
 
 # ------------------------------------------------------------------------------ markers
@@ -96,7 +98,8 @@ def test_rotated_cube_is_enclosed_by_its_bounding_box():
     assert obstacle.max[:2] == pytest.approx([half, half])
     assert obstacle.max[2] == pytest.approx(1.0)
     # Every corner of the rotated cube lies inside the box.
-    rotation = conv._rotation_matrix(np.array(yaw45))
+    c = s = math.sqrt(0.5)
+    rotation = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])    # 45 deg about +z
     corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
     rotated = corners @ rotation.T
     assert np.all(rotated <= obstacle.max + 1e-12) and np.all(rotated >= obstacle.min - 1e-12)
@@ -290,13 +293,13 @@ def test_trajectory_message(plan_result):
     assert point.velocities[0].linear.x == pytest.approx(trajectory.velocities[middle][0])
     assert point.accelerations[0].linear.z == pytest.approx(
         trajectory.accelerations[middle][2])
-    assert conv.duration_to_seconds(point.time_from_start) == pytest.approx(
+    assert duration_to_seconds(point.time_from_start) == pytest.approx(
         trajectory.times[middle], abs=1e-9)
 
 
 def test_plan_diagnostics_carry_code_and_key_values(plan_result):
     values = conv.plan_diagnostic_values(plan_result, 'odom')
-    msg = conv.diagnostic_array(0, '/n: global planner', 'hw', conv.DiagnosticStatus.OK,
+    msg = conv.diagnostic_array(0, '/n: global planner', 'hw', DiagnosticStatus.OK,
                                 'ok', values)
     (status, read), = conv.diagnostic_values(msg)
     assert read['status_code'] == '0' and read['status'] == 'ok'

@@ -165,7 +165,9 @@ def test_required_sources_are_waited_for(ros) -> None:
     (result,) = planner.params.set({'required_map_sources': ['map_file']})
     assert not result.successful and 'no map_file is set' in result.reason
     (result,) = planner.params.set({'cloud_qos_reliability': 'best_effort'})
-    assert not result.successful and 'restart the node' in result.reason
+    # Read at start-up: a read-only parameter, refused by rclpy on a running node.
+    assert not result.successful and 'read-only parameter' in result.reason, result.reason
+    assert planner.params.get(['cloud_qos_reliability']) == {'cloud_qos_reliability': 'reliable'}
 
 
 # ------------------------------------------------------------------------------ plan in force

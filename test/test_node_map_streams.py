@@ -10,7 +10,6 @@ from diagnostic_msgs.msg import DiagnosticArray
 from nav_msgs.msg import Path as PathMsg
 import numpy as np
 import pytest
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import PointCloud2, PointField
 from std_msgs.msg import Header
 
@@ -20,6 +19,7 @@ from ros_harness import (CLOUD_QOS, min_clearance, PlannerClient, pose_msg, READ
 from uav_global_planner.core.obstacles import ObstacleSet, PointSet
 from uav_global_planner.core.scene import find_scene, load_scene
 from uav_global_planner.ros import conversions as conv
+from uav_global_planner.ros.qos import keep_last
 
 pytestmark = pytest.mark.ros
 
@@ -76,9 +76,8 @@ def wall(offset: float, count: int = 4000) -> np.ndarray:
 def test_streamed_clouds_all_arrive_and_plans_keep_gamma_from_their_map(ros) -> None:
     planner: PlannerClient = ros['stream']
     # Plans come fast here: keep every one (the harness's latched recorder keeps the last).
-    every_plan = planner.client.record(PathMsg, planner.prefix + 'plan', QoSProfile(
-        history=HistoryPolicy.KEEP_LAST, depth=200, reliability=ReliabilityPolicy.RELIABLE,
-        durability=DurabilityPolicy.TRANSIENT_LOCAL))
+    every_plan = planner.client.record(PathMsg, planner.prefix + 'plan',
+                                       keep_last(200, latched=True))
     planner.set_obstacles(conv.obstacle_input_markers(SCENE.obstacles, 'map', 0, ns='scene'),
                           len(SCENE.obstacles))
     clouds: Dict[int, np.ndarray] = {}

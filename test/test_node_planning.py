@@ -1,15 +1,17 @@
 """The planner node in real processes: plans, latching, parameters, bad input, namespaces.
 
-Two node processes serve the whole module (one in the root namespace, one in ``/second``); the
-tests talk to them only through topics and parameter services. Tests run in file order and
-some build on the state left by earlier ones (the obstacles, the last plan), as a user would.
+Two node processes serve the whole module (one in this run's namespace, one in ``second``
+below it); the tests talk to them only through topics and parameter services. Every test starts
+from the same state of the first node, whatever ran before it: the ``planner`` fixture changes
+``frame_id`` away and back (the node then drops its goal, its start from start_pose or odom and
+every obstacle), restores the parameters it started with, publishes the scene's obstacles and
+plans to the scene's goal (that plan is ``planner.baseline``).
 """
 
-from dataclasses import dataclass
 import math
 import signal
 import time
-from typing import Dict, Optional, Sequence, Tuple
+from typing import Any, Dict, Optional, Sequence, Tuple
 
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped
@@ -21,10 +23,11 @@ from std_msgs.msg import Header
 from trajectory_msgs.msg import MultiDOFJointTrajectory
 from visualization_msgs.msg import Marker, MarkerArray
 
-from ros_harness import (assert_clean_exit, CLOUD_QOS, diagnostics_of, LATCHED_QOS, marker,
-                         marker_array, min_clearance, NODE_NAME, NodeProcess, OBSTACLES_QOS,
-                         odom_msg, pose_msg, READY_TEXT, RosClient, RUN_NAMESPACE, SENSOR_QOS,
-                         start_planner, STARTUP_TIMEOUT_S, unique_domain_id, wait_until)
+from ros_harness import (assert_clean_exit, CLOUD_QOS, LATCHED_QOS, marker, marker_array,
+                         min_clearance, NODE_NAME, NodeProcess, OBSTACLES_QOS, odom_msg,
+                         PlannerClient, pose_msg, READY_TEXT, Recorder, RosClient,
+                         RUN_NAMESPACE, SENSOR_QOS, start_planner, STARTUP_TIMEOUT_S,
+                         unique_domain_id, wait_until)
 from uav_global_planner.core.obstacles import Box, ObstacleSet, PointSet, Sphere
 from uav_global_planner.core.scene import find_scene, load_scene
 from uav_global_planner.ros import conversions as conv
@@ -41,6 +44,10 @@ BOX_CENTER, BOX_SIZE = (-5.0, -5.0, 3.0), (2.0, 2.0, 6.0)
 PLAN_TIMEOUT_S = 20.0
 TOL = 1e-6
 SECOND_NAMESPACE = f'{RUN_NAMESPACE}/second'
+# Every parameter a test sets (or tries to), restored to its start-up value before each test.
+TOUCHED_PARAMETERS = ('safety_margin', 'bounds.min', 'bounds.max', 'resolution', 'max_voxels',
+                      'algorithm', 'smoothing', 'start', 'frame_id', 'cloud_non_finite',
+                      'use_sim_time')
 
 
 def scene_markers() -> MarkerArray:
@@ -56,86 +63,48 @@ def scene_obstacles() -> ObstacleSet:
     return ObstacleSet(list(SCENE.obstacles.items) + [Box(lo, hi)])
 
 
-@dataclass
-class PlannerUnderTest:
-    """One planner process and the test-side endpoints that talk to it."""
+class PlannerUnderTest(PlannerClient):
+    """The harness's client of one planner node, plus the outputs and inputs the tests here
+    name (``BAD_INPUTS`` names the publishers)."""
 
-    process: NodeProcess
-    client: RosClient
-    namespace: str
-    diagnostics: object
-
-    def __post_init__(self) -> None:
-        prefix = self.namespace.rstrip('/') + '/'
-        self.fqn = prefix + NODE_NAME
-        node = self.client
-        self.plans = node.record(Path, prefix + 'plan', LATCHED_QOS)
-        self.unsmoothed = node.record(Path, prefix + 'unsmoothed_plan', LATCHED_QOS)
-        self.trajectories = node.record(MultiDOFJointTrajectory, prefix + 'trajectory',
-                                        LATCHED_QOS)
-        self.markers = node.record(MarkerArray, prefix + 'planner_markers', LATCHED_QOS)
-        self.goal_pub = node.publisher(PoseStamped, prefix + 'goal_pose')
-        self.start_pub = node.publisher(PoseStamped, prefix + 'start_pose')
-        self.obstacles_pub = node.publisher(MarkerArray, prefix + 'obstacles', OBSTACLES_QOS)
+    def __init__(self, process: NodeProcess, client: RosClient, namespace: str,
+                 diagnostics: Recorder) -> None:
+        super().__init__(client, namespace, diagnostics, process)
+        prefix = self.prefix
+        self.unsmoothed = client.record(Path, prefix + 'unsmoothed_plan', LATCHED_QOS)
+        self.trajectories = client.record(MultiDOFJointTrajectory, prefix + 'trajectory',
+                                          LATCHED_QOS)
+        self.goal_pub = client.publisher(PoseStamped, prefix + 'goal_pose')
+        self.start_pub = client.publisher(PoseStamped, prefix + 'start_pose')
+        self.obstacles_pub = client.publisher(MarkerArray, prefix + 'obstacles', OBSTACLES_QOS)
         # Reliable, as the node's cloud subscription: a best-effort publisher does not
         # connect to it.
-        self.cloud_pub = node.publisher(PointCloud2, prefix + 'obstacle_cloud', CLOUD_QOS)
-        self.odom_pub = node.publisher(Odometry, prefix + 'odom', SENSOR_QOS)
-        self.params = node.parameters(self.fqn)
+        self.cloud_pub = client.publisher(PointCloud2, prefix + 'obstacle_cloud', CLOUD_QOS)
+        self.odom_pub = client.publisher(Odometry, prefix + 'odom', SENSOR_QOS)
+        self.baseline: Optional[Tuple[Dict[str, str], Path]] = None
 
-    # -------------------------------------------------------------------- diagnostics
+    def plan_to(self, goal: Sequence[float], orientation: Sequence[float] = GOAL_ORIENTATION,
+                frame_id: str = 'map', timeout_s: float = PLAN_TIMEOUT_S
+                ) -> Tuple[Dict[str, str], Optional[Path]]:
+        """Send a goal (with the scene's goal heading); its plan diagnostics and plan."""
+        return super().plan_to(goal, orientation, frame_id, timeout_s)
 
-    def _diag(self, msg: DiagnosticArray) -> Optional[Dict[str, str]]:
-        values = diagnostics_of(self.fqn, msg)
-        if values is not None:
-            values['_stamp'] = conv.time_to_ns(msg.header.stamp)
-        return values
-
-    def wait_diag(self, after: int, event: str, timeout_s: float = PLAN_TIMEOUT_S,
-                  check=lambda values: True, what: str = '') -> Dict[str, str]:
-        """First diagnostics entry of this node after ``after`` with the given event."""
-        def matches(msg) -> bool:
-            values = self._diag(msg)
-            return values is not None and values.get('event') == event and check(values)
-        msg = self.diagnostics.wait_for(matches, timeout_s, after,
-                                        what or f'{event} diagnostics of {self.fqn}')
-        return self._diag(msg)
-
-    def diag_events(self, after: int, event: str) -> list:
-        found = []
-        for msg in self.diagnostics.messages[after:]:
-            values = self._diag(msg)
-            if values is not None and values.get('event') == event:
-                found.append(values)
-        return found
-
-    # -------------------------------------------------------------------- actions
-
-    def plan_to(self, goal: Sequence[float], orientation=GOAL_ORIENTATION,
-                frame_id: str = 'map') -> Tuple[Dict[str, str], Optional[Path]]:
-        """Send a goal; return the plan diagnostics and (on success) the plan."""
-        mark = self.diagnostics.mark()
-        self.goal_pub.publish(pose_msg(goal, frame_id, orientation))
-        values = self.wait_diag(mark, 'plan')
-        return values, self.plan_for(values)
-
-    def plan_for(self, values: Dict[str, str]) -> Optional[Path]:
-        """The plan published with these diagnostics (same stamp), or None on failure."""
-        if values['status'] != 'ok':
-            return None
-        stamp_ns = values['_stamp']
-        return self.plans.wait_for(lambda m: conv.time_to_ns(m.header.stamp) == stamp_ns,
-                                   5.0, what='the plan of the diagnostics')
-
-    def set_obstacles(self, msg: MarkerArray, expected_obstacles: int) -> None:
-        """Publish markers; return once the node shows that many obstacles."""
-        mark = self.markers.mark()
-        self.obstacles_pub.publish(msg)
-
-        def shown(markers: MarkerArray) -> bool:
-            solid = [m for m in markers.markers if m.ns == 'obstacles']
-            return len(solid) == expected_obstacles
-        self.markers.wait_for(shown, 10.0, mark, f'{expected_obstacles} obstacles in use')
+    def reset(self, initial: Dict[str, Any]) -> None:
+        """Back to the start-up state, then the scene's obstacles and a plan to its goal."""
+        # Leaving the frame drops the goal, the start from start_pose or odom and the map.
+        for frame in (initial['frame_id'] + '_reset', initial['frame_id']):
+            (result,) = self.params.set({'frame_id': frame})
+            assert result.successful, result.reason
+        current = self.params.get(list(initial))
+        changed = {name: value for name, value in initial.items()
+                   if not _same_value(current[name], value)}
+        if changed:
+            result = self.params.set_atomically(changed)
+            assert result.successful, result.reason
+        self.set_obstacles(scene_markers(), len(SCENE.obstacles) + 1)
+        values, path = self.plan_to(GOAL)
+        assert values['status'] == 'ok', values
+        self.baseline = values, path
 
 
 @pytest.fixture(scope='module')
@@ -164,9 +133,24 @@ def ros():
             second.kill()
 
 
+def _same_value(a: Any, b: Any) -> bool:
+    if isinstance(a, (str, bool, int, float)) or isinstance(b, (str, bool, int, float)):
+        return a == b
+    return list(a) == list(b)
+
+
 @pytest.fixture(scope='module')
-def planner(ros) -> PlannerUnderTest:
-    return ros['first']
+def initial_parameters(ros) -> Dict[str, Any]:
+    """The first node's start-up values of the parameters the tests touch."""
+    return ros['first'].params.get(TOUCHED_PARAMETERS)
+
+
+@pytest.fixture
+def planner(ros, initial_parameters) -> PlannerUnderTest:
+    """The first node, reset (see the module documentation); ``baseline`` is its plan."""
+    first = ros['first']
+    first.reset(initial_parameters)
+    return first
 
 
 def assert_safe(path: Path, obstacles: ObstacleSet, gamma: float) -> float:
@@ -180,8 +164,7 @@ def assert_safe(path: Path, obstacles: ObstacleSet, gamma: float) -> float:
 # ------------------------------------------------------------------------------ planning
 
 def test_plan_keeps_gamma_from_every_obstacle(planner):
-    planner.set_obstacles(scene_markers(), len(SCENE.obstacles) + 1)
-    values, path = planner.plan_to(GOAL)
+    values, path = planner.baseline
     assert values['status'] == 'ok', values
     assert values['status_code'] == '0'
     assert values['start_source'] == 'parameter'
@@ -214,7 +197,7 @@ def test_plan_keeps_gamma_from_every_obstacle(planner):
 
 
 def test_late_subscriber_gets_the_last_plan(planner):
-    last = planner.plans.messages[-1]
+    _, last = planner.baseline
     late = planner.client.record(Path, f'{RUN_NAMESPACE}/plan', LATCHED_QOS)
     received = late.wait_for(timeout_s=10.0, what='the latched plan')
     assert received.header.stamp == last.header.stamp
@@ -251,7 +234,7 @@ def test_raised_safety_margin_applies_to_the_next_plan(planner):
     ({'bounds.min': [10.0, 10.0, 10.0]}, 'bounds.min must be below bounds.max'),
     ({'bounds.max': [1.0, 2.0]}, 'bounds.max must be three numbers'),
     ({'safety_margin': math.nan}, 'safety_margin'),
-    ({'start': [0.0, math.inf, 0.0]}, 'start must be finite'),
+    ({'start': [0.0, math.inf, 0.0]}, 'start[1] must be finite'),
     ({'frame_id': ''}, 'frame_id must be a non-empty'),
     ({'cloud_non_finite': 'keep'}, 'cloud_non_finite must be one of'),
     ({'resolution': 'fine'}, 'type'),
@@ -388,6 +371,11 @@ def test_goal_inside_an_obstacle_fails_with_goal_occupied(planner):
 
 
 def test_node_still_plans_safely_after_bad_input(planner):
+    for case in ('marker_nan', 'cloud_truncated', 'goal_nan', 'odom_wrong_frame'):
+        publisher, make, _ = BAD_INPUTS[case]
+        mark = planner.diagnostics.mark()
+        getattr(planner, publisher).publish(make())
+        planner.wait_diag(mark, 'input_rejected', 10.0)
     values, path = planner.plan_to(GOAL)
     assert values['status'] == 'ok', values
     assert values['obstacles'] == str(len(SCENE.obstacles) + 1)
@@ -397,7 +385,7 @@ def test_node_still_plans_safely_after_bad_input(planner):
 # ------------------------------------------------------------------------------ obstacle changes
 
 def test_new_obstacle_on_the_path_triggers_a_replan(planner):
-    path = conv.path_to_points(planner.plans.messages[-1])
+    path = conv.path_to_points(planner.baseline[1])
     blocker = path[len(path) // 2]
     mark = planner.diagnostics.mark()
     planner.set_obstacles(marker_array(
@@ -421,7 +409,7 @@ def test_new_obstacle_on_the_path_triggers_a_replan(planner):
 
 
 def test_point_cloud_obstacles_are_avoided(planner):
-    path = conv.path_to_points(planner.plans.messages[-1])
+    path = conv.path_to_points(planner.baseline[1])
     center = path[len(path) // 3]
     rng = np.random.default_rng(3)
     blob = center + rng.uniform(-0.5, 0.5, size=(400, 3))
@@ -464,7 +452,7 @@ def test_start_comes_from_start_pose_then_odom(planner):
 
 # ------------------------------------------------------------------------------ namespaces
 
-def test_namespaced_instance_plans_beside_the_first(ros):
+def test_namespaced_instance_plans_beside_the_first(ros, planner):
     first, second = ros['first'], ros['second']
     assert second.fqn == f'{SECOND_NAMESPACE}/{NODE_NAME}'
     assert first.fqn == f'{RUN_NAMESPACE}/{NODE_NAME}'

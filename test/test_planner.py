@@ -158,8 +158,18 @@ def test_obstacle_change_is_seen_by_path_is_clear():
     planner = Planner(SMALL, ObstacleSet([SPHERE]))
     result = planner.plan([0.5, 0.5, 2.0], [5.5, 5.5, 2.0])
     assert planner.path_is_clear(result.smoothed_path)
-    midpoint = result.smoothed_path[len(result.smoothed_path) // 2]
-    planner.set_obstacles(ObstacleSet([SPHERE, Sphere(midpoint, 0.3)]))
+    # A small obstacle exactly halfway along the longest edge of the shortcut polyline: every
+    # vertex keeps far more than gamma from it, so a check of the vertices sees nothing, but
+    # the edge runs through it.
+    polyline = result.shortcut_path
+    assert planner.path_is_clear(polyline)
+    longest = int(np.argmax(np.linalg.norm(np.diff(polyline, axis=0), axis=1)))
+    between = Sphere(polyline[longest:longest + 2].mean(axis=0), 0.1)
+    assert ObstacleSet([between]).distance(polyline).min() >= 3 * SMALL.safety_margin
+    changed = ObstacleSet([SPHERE, between])
+    assert changed.distance(polyline).min() >= SMALL.safety_margin
+    planner.set_obstacles(changed)
+    assert not planner.path_is_clear(polyline)
     assert not planner.path_is_clear(result.smoothed_path)
     replanned = planner.plan([0.5, 0.5, 2.0], [5.5, 5.5, 2.0])
     assert replanned.ok and planner.path_is_clear(replanned.smoothed_path)

@@ -65,7 +65,7 @@ def _with(path, value):
     (('goal',), KeyError, 'goal: missing required key'),
     (('bounds', 'max'), KeyError, 'bounds.max: missing required key'),
     (('resolution',), 'fine', "resolution: must be a number, got 'fine'"),
-    (('resolution',), -0.5, 'resolution must be in'),
+    (('resolution',), -0.5, 'resolution: must be in'),
     (('safety_margin',), True, 'safety_margin: must be a number'),
     (('start',), [0.0, 0.0], 'start: must be a list of three numbers'),
     (('goal', 2), float('nan'), r'goal\[2\]: must be finite'),

@@ -1,7 +1,7 @@
 """Tests of the grid search (uav_global_planner.core.search).
 
 Costs are checked against an independent shortest-path computation: the 26-connected graph over
-the free nodes is built here with numpy and solved with scipy.sparse.csgraph.
+the free nodes is built with numpy and solved with scipy.sparse.csgraph (test/helpers/scenes.py).
 """
 
 import json
@@ -11,11 +11,11 @@ from pathlib import Path
 import re
 import subprocess
 import sys
+import time
 
+from helpers.scenes import graph_distances
 import numpy as np
 import pytest
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import shortest_path
 
 from uav_global_planner.core import search as search_module
 from uav_global_planner.core.config import ALGORITHMS
@@ -34,29 +34,6 @@ OPTIMAL = ('dijkstra', 'astar', 'octile')
 N_RANDOM_SCENES = 240
 # Relative tolerance of cost comparisons: sums of a few hundred step costs in float64.
 RTOL = 1e-9
-
-
-def graph_distances(blocked: np.ndarray, resolution: float, source: int) -> np.ndarray:
-    """Shortest 26-connected distance [m] from flat node ``source`` to every node (inf if cut)."""
-    shape = blocked.shape
-    ids = np.arange(blocked.size).reshape(shape)
-    free = ~blocked
-    rows, cols, weights = [], [], []
-    for offset in np.ndindex(3, 3, 3):
-        step = np.array(offset) - 1
-        # Each undirected edge once: only offsets whose first non-zero component is positive.
-        nonzero = step[step != 0]
-        if len(nonzero) == 0 or nonzero[0] < 0:
-            continue
-        src = tuple(slice(max(0, -s), n - max(0, s)) for s, n in zip(step, shape))
-        dst = tuple(slice(max(0, s), n - max(0, -s)) for s, n in zip(step, shape))
-        both = free[src] & free[dst]
-        rows.append(ids[src][both])
-        cols.append(ids[dst][both])
-        weights.append(np.full(int(both.sum()), resolution * math.sqrt(np.abs(step).sum())))
-    graph = coo_matrix((np.concatenate(weights), (np.concatenate(rows), np.concatenate(cols))),
-                       shape=(blocked.size, blocked.size)).tocsr()
-    return shortest_path(graph, method='D', directed=False, indices=source)
 
 
 def random_scene(seed: int):
@@ -97,8 +74,12 @@ def random_scene(seed: int):
 
 
 def check_path(result: SearchResult, blocked: np.ndarray, resolution: float, start,
-               goal) -> None:
-    """Every structural property a search result must have."""
+               goal, elapsed_s: float) -> None:
+    """Every structural property a search result must have.
+
+    ``elapsed_s`` is the wall-clock time [s] the test measured around the call: the search
+    time reported must lie within it (in seconds, not another unit, and not 0 by default).
+    """
     path = result.path_indices
     assert path.dtype == np.int64 and path.ndim == 2 and path.shape[1] == 3
     assert np.array_equal(path[0], start)
@@ -112,7 +93,7 @@ def check_path(result: SearchResult, blocked: np.ndarray, resolution: float, sta
     assert result.cost_m == pytest.approx(float(np.sum(resolution * np.sqrt(axes))), rel=RTOL,
                                           abs=1e-12)
     assert result.expanded_nodes >= 1
-    assert result.search_time_s >= 0.0
+    assert 0.0 < result.search_time_s <= elapsed_s
 
 
 @pytest.mark.parametrize('seed', range(N_RANDOM_SCENES))
@@ -128,8 +109,9 @@ def test_random_scene_matches_csgraph(seed):
             with pytest.raises(NoValidPathError, match='expanded'):
                 workspace.search(start, goal, algorithm, resolution, eta)
             continue
+        began = time.perf_counter()
         result = workspace.search(start, goal, algorithm, resolution, eta)
-        check_path(result, blocked, resolution, start, goal)
+        check_path(result, blocked, resolution, start, goal, time.perf_counter() - began)
         if algorithm in OPTIMAL:
             assert result.cost_m == pytest.approx(optimum, rel=RTOL, abs=1e-12), algorithm
         else:
@@ -148,9 +130,10 @@ def test_weighted_search_keeps_its_bound(seed, weight):
     optimum = distance[np.ravel_multi_index(tuple(goal), shape)]
     if not np.isfinite(optimum):
         return
-    result = SearchWorkspace(blocked).search(start, goal, 'weighted', resolution, eta,
-                                             weight=weight)
-    check_path(result, blocked, resolution, start, goal)
+    workspace = SearchWorkspace(blocked)
+    began = time.perf_counter()
+    result = workspace.search(start, goal, 'weighted', resolution, eta, weight=weight)
+    check_path(result, blocked, resolution, start, goal, time.perf_counter() - began)
     assert optimum * (1.0 - RTOL) <= result.cost_m <= weight * optimum * (1.0 + RTOL) + 1e-12
     if weight == 1.0:
         assert result.cost_m == pytest.approx(optimum, rel=RTOL, abs=1e-12)
@@ -322,12 +305,12 @@ _SUBPROCESS_SCRIPT = """
 import json
 import numpy as np
 from uav_global_planner.core.jit import JIT_ENABLED
-from uav_global_planner.core.search import search
+from uav_global_planner.core.search import ALGORITHM_CODES, search
 blocked = np.zeros((9, 8, 7), dtype=bool)
 blocked[3:6, 1:8, 0:6] = True
 blocked[6, 0:3, 2] = True
 out = {'jit': JIT_ENABLED}
-for algorithm in ('dijkstra', 'astar', 'adaptive', 'octile', 'weighted'):
+for algorithm in ALGORITHM_CODES:
     r = search(blocked, (0, 7, 0), (8, 0, 6), algorithm, 0.3, 0.8)
     out[algorithm] = [r.path_indices.tolist(), r.cost_m, r.expanded_nodes]
 print(json.dumps(out))
@@ -346,6 +329,8 @@ def _run_subprocess(disable_jit: bool) -> dict:
 def test_pure_python_fallback_matches_compiled():
     plain = _run_subprocess(disable_jit=True)
     assert plain.pop('jit') is False
+    # The child ran every algorithm its search accepts, and those are the configurable ones.
+    assert sorted(plain) == sorted(ALGORITHMS)
     compiled = _run_subprocess(disable_jit=False) if not JIT_ENABLED else None
     blocked = np.zeros((9, 8, 7), dtype=bool)
     blocked[3:6, 1:8, 0:6] = True
@@ -428,7 +413,24 @@ def test_non_contiguous_grid_is_accepted():
     assert np.array_equal(result.path_indices, reference.path_indices)
 
 
-def test_jit_flag_is_a_bool():
+def test_jit_flag_tells_whether_the_kernels_are_compiled():
+    # numba's dispatchers have the compiled signatures; the plain functions have none.
+    kernels = [value for name, value in vars(search_module).items()
+               if name.startswith('_') and callable(value) and hasattr(value, 'py_func')]
     assert isinstance(JIT_ENABLED, bool)
-    assert set(ALGORITHM_CODES) == set(ALGORITHMS)
-    assert len(set(ALGORITHM_CODES.values())) == 5
+    assert bool(kernels) == JIT_ENABLED
+    if os.environ.get('UAV_PLANNER_DISABLE_JIT') == '1':
+        assert not JIT_ENABLED
+
+
+def test_every_algorithm_name_selects_its_own_heuristic():
+    """Each configurable name reaches the search, with a heuristic no other name has."""
+    blocked = np.zeros((4, 4, 4), dtype=bool)
+    for algorithm in ALGORITHMS:
+        assert search(blocked, (0, 0, 0), (3, 2, 1), algorithm, 0.5, 1.0).cost_m > 0.0
+    # At a displacement where the formulas differ (see test_heuristic_definitions).
+    values = {name: search_module._heuristic(ALGORITHM_CODES[name], 3, 4, 12, 0.5, 1.0, 1.25)
+              for name in ALGORITHMS}
+    assert len(set(values.values())) == len(ALGORITHMS), values
+    with pytest.raises(InvalidInputError, match='algorithm must be one of'):
+        search(blocked, (0, 0, 0), (3, 2, 1), 'theta*', 0.5, 1.0)

@@ -8,11 +8,10 @@ the returned curve, sampled by arc length at delta / 20.
 import math
 from pathlib import Path
 
+from helpers.scenes import csgraph_path, random_scene, SEEDS
 import numpy as np
 import pytest
 from scipy.interpolate import CubicSpline
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import dijkstra
 import yaml
 
 from uav_global_planner.core.errors import InvalidInputError, NoValidPathError
@@ -20,49 +19,16 @@ from uav_global_planner.core.grid import VoxelGrid
 from uav_global_planner.core.inflation import blocked_mask
 from uav_global_planner.core.obstacles import Box, ObstacleSet, PointSet, Sphere
 from uav_global_planner.core.result import polyline_length
-from uav_global_planner.core.smoothing import (
-    shortcut_path, smooth_path, SmoothedPath)
+from uav_global_planner.core.shortcut import shortcut_path
+from uav_global_planner.core.smoothing import smooth_path, SmoothedPath
 
 SCENES = Path(__file__).resolve().parents[1] / 'config' / 'scenes'
 LIPSCHITZ = math.sqrt(3.0) / 2.0
-_OFFSETS = np.array([(i, j, k) for i in (-1, 0, 1) for j in (-1, 0, 1) for k in (-1, 0, 1)
-                     if (i, j, k) > (0, 0, 0)])
 
 
 # ----------------------------------------------------------------------------------------------
-# Helpers (also used by test_timing.py)
+# Scene files
 # ----------------------------------------------------------------------------------------------
-
-def csgraph_path(grid: VoxelGrid, blocked: np.ndarray, start, goal):
-    """Shortest 26-connected path over free nodes [m], or None; independent of core.search."""
-    shape = np.asarray(grid.shape)
-    index = np.stack(np.meshgrid(*[np.arange(n) for n in shape], indexing='ij'),
-                     axis=-1).reshape(-1, 3)
-    free = ~blocked.reshape(-1)
-    rows, cols, weights = [], [], []
-    for offset in _OFFSETS:
-        neighbour = index + offset
-        inside = np.all((neighbour >= 0) & (neighbour < shape), axis=1)
-        a = np.flatnonzero(inside)
-        b = np.ravel_multi_index(tuple(neighbour[inside].T), grid.shape)
-        both = free[a] & free[b]
-        rows.append(a[both])
-        cols.append(b[both])
-        weights.append(np.full(int(both.sum()), np.linalg.norm(offset) * grid.resolution))
-    graph = coo_matrix((np.concatenate(weights), (np.concatenate(rows), np.concatenate(cols))),
-                       shape=(grid.size, grid.size)).tocsr()
-    source = int(grid.ravel(grid.world_to_index(np.asarray(start))))
-    target = int(grid.ravel(grid.world_to_index(np.asarray(goal))))
-    if not (free[source] and free[target]):
-        return None
-    dist, pred = dijkstra(graph, directed=False, indices=source, return_predecessors=True)
-    if not np.isfinite(dist[target]):
-        return None
-    chain = [target]
-    while chain[-1] != source:
-        chain.append(int(pred[chain[-1]]))
-    return grid.index_to_world(grid.unravel(np.array(chain[::-1])))
-
 
 def load_scene(name: str):
     """(grid, obstacles, gamma, start, goal) of a shipped scene file."""
@@ -72,57 +38,6 @@ def load_scene(name: str):
                                  data['resolution'])
     return grid, obstacles, float(data['safety_margin']), np.array(data['start'], float), \
         np.array(data['goal'], float)
-
-
-def random_scene(seed: int):
-    """A random scene with a raw node path: (grid, obstacles, gamma, path) or None.
-
-    Mixes spheres, boxes and point clouds; every third scene has a wall with a narrow opening
-    (width between 2 gamma + delta / 2 and 2 gamma + 3 delta) that the path must squeeze through.
-    """
-    rng = np.random.default_rng(seed)
-    delta = float(rng.choice([0.25, 0.3, 0.4, 0.5]))
-    gamma = float(rng.uniform(0.0, 0.6)) if seed % 5 else 0.6
-    extent = rng.uniform(3.0, 6.0, size=3)
-    extent[2] = rng.uniform(2.0, 4.0)
-    grid = VoxelGrid.from_bounds(np.zeros(3), extent, delta)
-    top = grid.upper_node
-    items = []
-    if seed % 3 == 0:
-        # A wall across x with a square opening; the ends of the path sit on either side.
-        x0 = 0.5 * top[0] - 0.2
-        width = 2.0 * gamma + rng.uniform(0.5, 3.0) * delta
-        centre = rng.uniform([0.3 * top[1], 0.3 * top[2]], [0.7 * top[1], 0.7 * top[2]])
-        lo, hi = centre - width / 2, centre + width / 2
-        thick = rng.uniform(0.1, 0.6)
-        panes = ((-1, lo[0], -1, top[2] + 1), (hi[0], top[1] + 1, -1, top[2] + 1),
-                 (lo[0], hi[0], -1, lo[1]), (lo[0], hi[0], hi[1], top[2] + 1))
-        for ymin, ymax, zmin, zmax in panes:
-            if ymax > ymin and zmax > zmin:
-                items.append(Box([x0, ymin, zmin], [x0 + thick, ymax, zmax]))
-    for _ in range(int(rng.integers(1, 6))):
-        items.append(Sphere(rng.uniform(0, top), rng.uniform(0.2, 1.2)))
-    for _ in range(int(rng.integers(0, 3))):
-        corner = rng.uniform(0, top)
-        items.append(Box(corner, corner + rng.uniform(0.2, 1.5, size=3)))
-    for _ in range(int(rng.integers(0, 2))):
-        centre = rng.uniform(0, top)
-        items.append(PointSet(centre + rng.normal(scale=0.4, size=(int(rng.integers(3, 40)), 3))))
-    obstacles = ObstacleSet(items)
-    blocked = blocked_mask(grid, obstacles, gamma)
-    # Start and goal: random free nodes on the two end faces (x = 0 and x = max).
-    ends = []
-    for face in (blocked[0], blocked[-1]):
-        free = np.argwhere(~face)
-        if not len(free):
-            return None
-        ends.append(free[int(rng.integers(len(free)))])
-    start = grid.index_to_world([0, *ends[0]])
-    goal = grid.index_to_world([grid.shape[0] - 1, *ends[1]])
-    path = csgraph_path(grid, blocked, start, goal)
-    if path is None or len(path) < 2:
-        return None
-    return grid, obstacles, gamma, path
 
 
 def dense_clearance(smoothed: SmoothedPath, obstacles: ObstacleSet, delta: float):
@@ -208,9 +123,6 @@ def smooth_or_fallback(grid, obstacles, gamma, path, **options):
 # ----------------------------------------------------------------------------------------------
 # Property tests on random scenes
 # ----------------------------------------------------------------------------------------------
-
-SEEDS = range(260)
-
 
 @pytest.fixture(scope='module')
 def scenes():
@@ -482,15 +394,16 @@ def test_single_point_and_duplicates():
 
 def test_invalid_inputs():
     obstacles = ObstacleSet()
-    with pytest.raises(InvalidInputError):
+    # Each refusal names the argument and what is wrong with it.
+    with pytest.raises(InvalidInputError, match=r'path .*\(N, 3\).*\(3, 2\)'):
         smooth_path(np.zeros((3, 2)), obstacles, 0.2, 0.5)
-    with pytest.raises(InvalidInputError):
+    with pytest.raises(InvalidInputError, match=r'safety_margin .*>= 0.*-0\.1'):
         smooth_path(np.zeros((2, 3)), obstacles, -0.1, 0.5)
-    with pytest.raises(InvalidInputError):
+    with pytest.raises(InvalidInputError, match=r'mode .*chord, index, none.*bezier'):
         smooth_path(np.zeros((2, 3)), obstacles, 0.2, 0.5, mode='bezier')
-    with pytest.raises(InvalidInputError):
+    with pytest.raises(InvalidInputError, match=r'index_step must be in \(0\.0, 1\.0\], got 2\.0'):
         smooth_path(np.zeros((2, 3)), obstacles, 0.2, 0.5, index_step=2.0)
-    with pytest.raises(InvalidInputError):
+    with pytest.raises(InvalidInputError, match=r'path .*finite'):
         smooth_path([[0, 0, 0], [np.nan, 0, 0]], obstacles, 0.2, 0.5)
     occupied = ObstacleSet([Sphere([0.0, 0.0, 0.0], 1.0)])
     with pytest.raises(NoValidPathError, match='waypoint 0'):

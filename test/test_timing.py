@@ -1,8 +1,8 @@
 """Time parameterisation of smoothed paths: limits, rest-to-rest, stops and kinematic sanity."""
 
+from helpers.scenes import random_scene, SEEDS
 import numpy as np
 import pytest
-from test_smoothing import random_scene, SEEDS
 
 from uav_global_planner.core.errors import InvalidInputError, NoValidPathError
 from uav_global_planner.core.obstacles import ObstacleSet
@@ -11,6 +11,9 @@ from uav_global_planner.core.smoothing import smooth_path, SmoothedPath
 from uav_global_planner.core.timing import check_limits, time_parameterize
 
 LIMITS = (2.0, 1.0, 1.0, 0.5)  # the PlannerConfig defaults [m/s, m/s, m/s^2, m/s^2]
+# Relative tolerance of accelerations found by finite differences of the timed samples:
+# rounding only (the measured worst over the random scenes is 1 + 1e-12).
+ACCEL_RTOL = 1e-6
 
 
 def check_trajectory(trajectory: Trajectory, smoothed: SmoothedPath, limits) -> None:
@@ -40,8 +43,41 @@ def check_trajectory(trajectory: Trajectory, smoothed: SmoothedPath, limits) -> 
     # (Generous: the curvature also varies along the interval.)
     bound = top * turn ** 2 / 2.0 + np.abs(np.diff(speed)) * turn + 0.01 * top + 1e-9
     assert np.all(error <= bound), np.max(error - bound)
-    # Accelerations agree with the change of velocity away from stop points.
-    assert np.all(np.isfinite(trajectory.accelerations))
+    check_motion_acceleration(trajectory, limits)
+    # The reported accelerations agree with the change of speed: speed is linear in time on
+    # each interval, so (speed[j+1] - speed[j]) / dt[j] is its tangential acceleration, and
+    # away from stop points the reported value at a sample has the mean of its two intervals'.
+    tangential = np.diff(speed) / dt
+    inner = np.setdiff1d(np.arange(1, len(times) - 1), smoothed.stop_points)
+    reported = np.sum(trajectory.accelerations[inner] * smoothed.tangents[inner], axis=1)
+    expected = 0.5 * (tangential[inner - 1] + tangential[inner])
+    scale = max(limits[2], limits[3])
+    assert np.allclose(reported, expected, rtol=0.0, atol=ACCEL_RTOL * scale), (
+        np.max(np.abs(reported - expected)))
+
+
+def check_motion_acceleration(trajectory: Trajectory, limits) -> None:
+    """The acceleration of the motion itself, from the timed samples alone, keeps the limits.
+
+    The motion is C1 in time (the speed is continuous and zero where the tangent jumps), so
+    twice the second divided difference of the positions over three consecutive samples is a
+    weighted mean of its acceleration between them and keeps the (convex) limits, up to the
+    rounding of the differences: ``ACCEL_RTOL`` of the limit. Independent of the reported
+    accelerations, which :func:`check_limits` checks.
+    """
+    times, positions = trajectory.times, trajectory.positions
+    if len(times) < 3:
+        return
+    dt = np.diff(times)
+    chord_velocity = np.diff(positions, axis=0) / dt[:, None]
+    motion = 2.0 * np.diff(chord_velocity, axis=0) / (dt[1:] + dt[:-1])[:, None]
+    horizontal = np.hypot(motion[:, 0], motion[:, 1])
+    vertical = np.abs(motion[:, 2])
+    _, _, max_horizontal, max_vertical = limits
+    assert horizontal.max() <= max_horizontal * (1.0 + ACCEL_RTOL), (
+        f'horizontal acceleration {horizontal.max():.6g} m/s^2 > {max_horizontal:g} m/s^2')
+    assert vertical.max() <= max_vertical * (1.0 + ACCEL_RTOL), (
+        f'vertical acceleration {vertical.max():.6g} m/s^2 > {max_vertical:g} m/s^2')
 
 
 def test_random_scenes_within_limits():
@@ -64,11 +100,16 @@ def test_random_scenes_within_limits():
     assert checked >= 200
 
 
-def test_straight_horizontal_line_is_trapezoidal():
-    path = np.array([[0.0, 0.0, 1.0], [10.0, 0.0, 1.0]])
-    smoothed = smooth_path(path, ObstacleSet(), 0.2, 0.5, sample_spacing=0.05)
+def timed_line(start, end) -> Trajectory:
+    """The checked timing, under :data:`LIMITS`, of the straight line from start to end [m]."""
+    smoothed = smooth_path(np.array([start, end]), ObstacleSet(), 0.2, 0.5, sample_spacing=0.05)
     trajectory = time_parameterize(smoothed, *LIMITS)
     check_trajectory(trajectory, smoothed, LIMITS)
+    return trajectory
+
+
+def test_straight_horizontal_line_is_trapezoidal():
+    trajectory = timed_line([0.0, 0.0, 1.0], [10.0, 0.0, 1.0])
     # Accelerate at 1 m/s^2 to 2 m/s (2 m), cruise 6 m, brake: 2 + 3 + 2 = 7 s.
     assert trajectory.duration_s == pytest.approx(7.0, rel=1e-3)
     assert np.linalg.norm(trajectory.velocities, axis=1).max() == pytest.approx(2.0)
@@ -76,11 +117,8 @@ def test_straight_horizontal_line_is_trapezoidal():
 
 
 def test_vertical_line_uses_vertical_limits():
-    path = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 5.0]])
-    smoothed = smooth_path(path, ObstacleSet(), 0.2, 0.5, sample_spacing=0.05)
-    trajectory = time_parameterize(smoothed, *LIMITS)
-    check_trajectory(trajectory, smoothed, LIMITS)
-    # 1 m/s^2 ... no: vertical 0.5 m/s^2 to 1 m/s (1 m), cruise 3 m, brake: 2 + 3 + 2 = 7 s.
+    trajectory = timed_line([0.0, 0.0, 0.0], [0.0, 0.0, 5.0])
+    # Vertical: 0.5 m/s^2 to 1 m/s (1 m), cruise 3 m, brake: 2 + 3 + 2 = 7 s.
     assert trajectory.duration_s == pytest.approx(7.0, rel=1e-3)
     assert np.abs(trajectory.velocities[:, 2]).max() == pytest.approx(1.0)
 
@@ -149,8 +187,9 @@ def test_single_sample_and_invalid_limits():
 def test_check_limits_reports_violations():
     times = np.array([0.0, 1.0])
     positions = np.zeros((2, 3))
-    trajectory = Trajectory(times, positions, np.array([[3.0, 0, 0], [0, 0, 2.0]]),
-                            np.array([[0, 0, 0], [0, 0, 0.0]]))
+    trajectory = Trajectory(times=times, positions=positions,
+                            velocities=np.array([[3.0, 0, 0], [0, 0, 2.0]]),
+                            accelerations=np.array([[0, 0, 0], [0, 0, 0.0]]))
     problems = check_limits(trajectory, *LIMITS)
     assert len(problems) == 2
     assert 'horizontal speed' in problems[0] and 'vertical speed' in problems[1]

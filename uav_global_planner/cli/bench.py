@@ -3,14 +3,17 @@
 Each scene runs in a fresh process, so the peak resident memory reported is that scene's own
 (grid, inflation, search workspace, smoothing), as it would be in the planner node. With
 ``--ros``, the ROS-side figures follow: goal-to-plan latency over DDS, node start-up and the
-node's peak memory, measured by :mod:`uav_global_planner.ros.latency_bench` in a child process
-(this module never imports rclpy, so the tool works without ROS). With ``--outdoor``, the
-per-stage figures of the outdoor scenes (town400, city1km, wall_gap, the town as a point cloud,
-a 99 M-node search grid) come from ``benchmarks/bench_outdoor.py`` of the source tree instead;
-scene names given then select its cases. Figures only: nothing here asserts a speed.
+node's peak memory, from the function registered as ``ros`` in the entry-point group
+:data:`BENCH_ENTRY_POINTS` (the ROS latency benchmark of ``uav_global_planner_tools`` registers
+itself there; this module imports neither it nor rclpy, so the tool works without ROS). With
+``--outdoor``, the per-stage figures of the outdoor scenes (town400, city1km, wall_gap, the town
+as a point cloud, a 99 M-node search grid) come from ``benchmarks/bench_outdoor.py`` of the
+source tree instead; scene names given then select its cases. Figures only: nothing here
+asserts a speed.
 """
 
 import argparse
+from importlib import metadata
 import json
 from pathlib import Path
 import resource
@@ -18,7 +21,7 @@ import statistics
 import subprocess
 import sys
 import time
-from typing import Any, Dict, List, Optional, Sequence
+from typing import Any, Dict, List, Optional, Sequence, Tuple
 
 from uav_global_planner.cli.report import finite_or_none, format_table
 from uav_global_planner.core.config import ALGORITHMS
@@ -121,73 +124,30 @@ def print_report(scenes: List[Dict[str, Any]], out=None) -> None:
              for r in figures['rows']]), file=out)
 
 
-def _ms(value: Optional[float], spec: str = '.1f') -> str:
-    return '-' if value is None else format(value, spec)
+#: Entry-point group of the figures other packages add to ``uav-plan bench``: ``ros`` is a
+#: callable taking the ROS benchmark's arguments and returning (JSON document, text report).
+BENCH_ENTRY_POINTS = 'uav_global_planner.bench'
 
 
-def format_ros_report(figures: Dict[str, Any]) -> str:
-    """Tables of the ROS-side figures (the JSON of ``latency_bench --json``)."""
-    load = figures.get('load_average')
-    after = figures.get('load_average_after')
-    lines = ['ROS: goal published -> plan received over DDS (localhost, domain '
-             f"{figures['domain_id']}), {figures['goals']} goals per scene alternating between "
-             f"two goals; {figures.get('cpus') or '?'} CPUs, load average "
-             f"{_ms(load, '.2f')} before, {_ms(after, '.2f')} after"]
-    rows = []
-    for s in figures['scenes']:
-        latency = s['latency']
-        received = s.get('bytes_latency') or {}
-        rows.append([s['scene'], f"{s['startup_s']:.2f}", _ms(latency['median_ms']),
-                     _ms(latency['p90_ms']), _ms(latency['max_ms']),
-                     _ms(received.get('median_ms')),
-                     f"{_ms(s['node_search_ms'], '.2f')} + {_ms(s['node_smoothing_ms'])}",
-                     str(s['poses'] or '-'), f"{s['plans_received']}/{s['goals']}",
-                     _ms(s['peak_rss_mb'], '.0f')])
-    if rows:
-        lines.append(format_table(
-            ['scene', 'start-up [s]', 'median [ms]', 'p90 [ms]', 'max [ms]',
-             'bytes in, median [ms]', 'node search + smoothing [ms]', 'poses', 'plans',
-             'peak RSS [MB]'], rows))
-    for s in figures['scenes']:
-        parts = [f"goal {[round(v, 2) for v in g['goal']]}: median "
-                 f"{_ms(g['latency']['median_ms'])} ms (node plan {_ms(g['node_plan_ms'])} ms)"
-                 for g in s.get('by_goal', ())]
-        if parts:
-            lines.append(f"  {s['scene']} per goal: " + '; '.join(parts))
-    memory = figures.get('memory')
-    if memory:
-        lines.append('')
-        lines.append(f"{memory['scene']}: node peak RSS (VmHWM) "
-                     f"{_ms(memory['peak_rss_mb'], '.0f')} MB after planning with every "
-                     f"algorithm (VmRSS then {_ms(memory['rss_mb'], '.0f')} MB), start-up "
-                     f"{memory['startup_s']:.2f} s")
-        lines.append(format_table(
-            ['algorithm', 'status', 'latency [ms]', 'node search [ms]', 'VmHWM after [MB]'],
-            [[r['algorithm'], r['status'], _ms(r['latency_ms']), _ms(r['node_search_ms']),
-              _ms(r['peak_rss_mb'], '.0f')] for r in memory['algorithms']]))
-    return '\n'.join(lines)
-
-
-def measure_ros(options: Sequence[str] = ()) -> Dict[str, Any]:
-    """The ROS-side figures, from ``python -m uav_global_planner.ros.latency_bench --json``.
+def measure_ros(options: Sequence[str] = ()) -> Tuple[Dict[str, Any], str]:
+    """The ROS-side figures and their tables, from the registered ``ros`` benchmark.
 
     Parameters
     ----------
     options : sequence of str
-        Further arguments of the benchmark, for example ``['--goals', '20']``.
+        Arguments of the benchmark, for example ``['--goals', '20']``.
 
     Raises
     ------
     RuntimeError
-        When the benchmark fails (ROS missing, the node not answering); with its output.
+        When no ROS benchmark is installed, or it fails (ROS missing, the node not answering).
     """
-    run = subprocess.run([sys.executable, '-m', 'uav_global_planner.ros.latency_bench',
-                          '--json', *options], capture_output=True, text=True, check=False)
-    try:
-        return json.loads(run.stdout)
-    except ValueError:
-        raise RuntimeError(f'ROS benchmark failed (exit code {run.returncode}):\n'
-                           f'{run.stderr.strip()}') from None
+    found = [entry for entry in metadata.entry_points(group=BENCH_ENTRY_POINTS)
+             if entry.name == 'ros']
+    if not found:
+        raise RuntimeError(f'no ROS benchmark installed (entry point "ros" in '
+                           f'{BENCH_ENTRY_POINTS}; pip install the package with its tools)')
+    return found[0].load()(list(options))
 
 
 def run_outdoor(cases: Sequence[str], as_json: bool) -> int:
@@ -236,13 +196,13 @@ def main(argv: Optional[List[str]] = None) -> int:
     ros = None
     if args.ros:
         try:
-            ros = measure_ros(['--goals', str(args.ros_goals)])
+            ros, ros_report = measure_ros(['--goals', str(args.ros_goals)])
         except RuntimeError as error:
             print(f'uav-plan bench: {error}', file=sys.stderr)
             return 1
         if not args.json:
             print()
-            print(format_ros_report(ros))
+            print(ros_report)
     if args.json:
         document: Dict[str, Any] = {'scenes': figures}
         if ros is not None:

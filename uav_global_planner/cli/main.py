@@ -9,7 +9,7 @@ from dataclasses import replace
 import json
 import math
 import sys
-from typing import List, Optional
+from typing import Any, Callable, List, Optional
 
 import numpy as np
 
@@ -19,12 +19,13 @@ from uav_global_planner.cli.report import (finite_or_none, format_summary, forma
                                            result_to_dict)
 from uav_global_planner.core.airspace import Airspace, load_geofence
 from uav_global_planner.core.budget import PlanStage
-from uav_global_planner.core.config import ALGORITHMS, SMOOTHING_MODES, validate_config
+from uav_global_planner.core.config import ALGORITHMS, validate_config
 from uav_global_planner.core.errors import InvalidInputError
 from uav_global_planner.core.mapfiles import load_map_files
 from uav_global_planner.core.obstacles import ObstacleSet
 from uav_global_planner.core.planner import Planner
 from uav_global_planner.core.scene import find_scene, load_scene, Scene
+from uav_global_planner.core.settings import format_value, Kind, planner_settings, Setting
 from uav_global_planner.core.status import PlanStatus
 
 EXIT_OK = 0
@@ -74,16 +75,7 @@ def _triple(text: str) -> List[float]:
 def _add_scene_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('scene', help='scene YAML file, or the name of a shipped scene '
                         '(paper_medium, paper_high, dense60_mid, dense60_fine)')
-    parser.add_argument('--resolution', type=float, help='override delta [m]')
-    parser.add_argument('--safety-margin', type=float, help='override gamma [m]')
-    parser.add_argument('--adaptive-threshold', type=float, help='override eta [m]')
-    parser.add_argument('--smoothing', choices=SMOOTHING_MODES,
-                        help='spline parameterisation (default chord)')
-    parser.add_argument('--no-shortcut', action='store_true',
-                        help='keep every grid node as a spline knot')
-    parser.add_argument('--max-planning-time', type=float, help='search budget [s], 0 = none')
-    parser.add_argument('--max-voxels', type=int, metavar='N',
-                        help='largest accepted grid node count (about 20 bytes of memory a node)')
+    _add_setting_flags(parser)
     parser.add_argument('--map', action='append', default=[], metavar='FILE',
                         help='add the occupied points of a map file (.pcd, .ply, .las, .laz, .bt, '
                         '.npy); repeatable')
@@ -94,11 +86,50 @@ def _add_scene_options(parser: argparse.ArgumentParser) -> None:
                         help='inclusion fences and no-fly zones from a YAML file or a '
                         "QGroundControl .plan (placed with the scene's geodetic_origin; .plan "
                         "fences span the bounds in height); replaces the scene's geofence")
-    parser.add_argument('--search-weight', type=float, metavar='W',
-                        help='suboptimality bound of the weighted algorithm (default 1.05)')
-    parser.add_argument('--map-downsample', type=float, metavar='CELL',
-                        help='keep one point per CELL-metre cell of the --map files; gamma grows '
-                        'by CELL*sqrt(3)/2 so the path keeps gamma from the original points')
+
+
+# Placeholder of a number option, by unit: metres, seconds.
+_METAVARS = {'m': 'M', 's': 'S'}
+
+
+def _argument_type(entry: Setting) -> Callable[[str], Any]:
+    """An argparse ``type`` converting a word and checking it with the table, so a flag
+    refuses exactly what the node, scene files and validate_config refuse."""
+    parse: Callable[[str], Any] = {Kind.INT: int, Kind.CHOICE: str}.get(entry.kind, float)
+
+    def convert(text: str) -> Any:
+        value = parse(text)  # ValueError: argparse says "invalid float value: 'abc'"
+        problem = entry.refusal(value)
+        if problem is not None:
+            raise argparse.ArgumentTypeError(f'{entry.name}{problem[0]} {problem[1]}')
+        return entry.normalise(value)
+
+    convert.__name__ = parse.__name__
+    return convert
+
+
+def _setting_dest(entry: Setting) -> str:
+    return entry.name.replace('.', '_')
+
+
+def _add_setting_flags(parser: argparse.ArgumentParser) -> None:
+    """One flag per setting of the table that has one: its type checks the value with the
+    table, its help text is the table's words (unit, accepted values, default)."""
+    for entry in planner_settings():
+        if entry.flag is None:
+            continue
+        dest = _setting_dest(entry)
+        if entry.kind is Kind.BOOL:
+            # A switch to the value that is not the default, e.g. --no-shortcut.
+            parser.add_argument(entry.flag, dest=dest, action='store_const',
+                                const=not entry.default, default=None,
+                                help=f'{entry.help_text()} This flag sets it to '
+                                f'{format_value(not entry.default)}.')
+            continue
+        metavar = ('{' + ','.join(entry.choices) + '}' if entry.kind is Kind.CHOICE
+                   else 'N' if entry.kind is Kind.INT else _METAVARS.get(entry.unit, 'X'))
+        parser.add_argument(entry.flag, dest=dest, type=_argument_type(entry),
+                            metavar=metavar, help=entry.help_text())
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -134,15 +165,10 @@ def _parser() -> argparse.ArgumentParser:
 
 def _scene_from_args(args: argparse.Namespace) -> Scene:
     changes = {}
-    for option, name in (('resolution', 'resolution'), ('safety_margin', 'safety_margin'),
-                         ('adaptive_threshold', 'adaptive_threshold'),
-                         ('smoothing', 'smoothing'),
-                         ('max_planning_time', 'max_planning_time'),
-                         ('max_voxels', 'max_voxels'), ('search_weight', 'search_weight')):
-        if getattr(args, option) is not None:
-            changes[name] = getattr(args, option)
-    if args.no_shortcut:
-        changes['shortcut'] = False
+    for entry in planner_settings():
+        value = getattr(args, _setting_dest(entry), None) if entry.flag else None
+        if value is not None and entry.field:
+            changes[entry.field] = value
     # The options replace the scene's values before it is validated, so --max-voxels can admit
     # a grid the scene's own cap refuses.
     scene = load_scene(find_scene(args.scene), overrides=changes)
@@ -155,7 +181,8 @@ def _scene_from_args(args: argparse.Namespace) -> Scene:
     if not args.map:
         return scene
     try:
-        maps = load_map_files(args.map, args.map_downsample)
+        # 0 means no downsampling, as for the node's map_downsample.
+        maps = load_map_files(args.map, args.map_downsample or None)
     except InvalidInputError as error:
         raise type(error)(f'--map: {error}') from None
     # gamma as asked, plus the largest margin of any map (see core.mapfiles).

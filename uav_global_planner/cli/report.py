@@ -42,7 +42,7 @@ def result_to_dict(result: PlanResult) -> Dict[str, Any]:
         'min_clearance_m': finite_or_none(result.min_clearance_m),
         'min_clearance_point': [finite_or_none(v) for v in result.min_clearance_point],
         'repaired_stretches': [
-            {'start_m': s.start_m, 'end_m': s.end_m, 'method': s.method,
+            {'start_m': s.start_m, 'end_m': s.end_m, 'method': s.method.value,
              'clearance_before_m': finite_or_none(s.clearance_before_m)}
             for s in result.repaired_stretches],
         'duration_s': finite_or_none(result.duration_s),

@@ -36,13 +36,18 @@ Where fences come from
 Errors name the key path, as for obstacles: ``geofence.exclusion[2].radius: must be > 0 m,
 got -1.0``; polygons must be simple (no two edges cross or touch), with at least three
 distinct vertices and a non-zero area.
+
+One module, though long (about 750 lines): the zone and fence shapes, their validation and the
+two file formats (YAML, QGroundControl ``.plan``) build the same objects with the same checks
+and key-path messages.
 """
 
+import dataclasses
 from dataclasses import dataclass
 import json
 import math
 from pathlib import Path
-from typing import Any, Iterable, List, Optional, Sequence, Tuple, Union
+from typing import Any, Iterable, List, Optional, Sequence, Tuple, Type, Union
 
 import numpy as np
 
@@ -200,13 +205,13 @@ def _polygon_row(polygon: np.ndarray, floor: float, ceiling: float) -> np.ndarra
 
 
 @dataclass(frozen=True, eq=False)
-class Prism(TableShape):
-    """Solid vertical prism: a polygon in x-y between a floor and a ceiling (a no-fly volume).
+class _PolygonBand(TableShape):
+    """A polygon in x-y between a floor and a ceiling, validated on construction.
 
     Attributes
     ----------
     polygon : numpy.ndarray, shape (V, 2)
-        Simple polygon [m], either orientation.
+        Simple polygon [m], either orientation, convex or not.
     floor, ceiling : float
         Height interval [m], floor < ceiling; -inf / +inf for no limit.
     label : str
@@ -216,7 +221,7 @@ class Prism(TableShape):
     polygon: np.ndarray
     floor: float = _LOWEST
     ceiling: float = _HIGHEST
-    label: str = 'prism'
+    label: str = ''
 
     def __post_init__(self) -> None:
         object.__setattr__(self, 'polygon', checked_polygon(self.polygon))
@@ -224,13 +229,10 @@ class Prism(TableShape):
         object.__setattr__(self, 'floor', floor)
         object.__setattr__(self, 'ceiling', ceiling)
 
-    def table_row(self) -> Tuple[int, np.ndarray, np.ndarray]:
-        return PRISM, _polygon_row(self.polygon, self.floor, self.ceiling), self.polygon
-
 
 @dataclass(frozen=True, eq=False)
-class Cylinder(TableShape):
-    """Solid vertical cylinder (a no-fly volume).
+class _CircleBand(TableShape):
+    """A circle in x-y between a floor and a ceiling, validated on construction.
 
     Attributes
     ----------
@@ -241,13 +243,14 @@ class Cylinder(TableShape):
     floor, ceiling : float
         Height interval [m], floor < ceiling; -inf / +inf for no limit.
     label : str
+        What messages call it.
     """
 
     center: np.ndarray
     radius: float
     floor: float = _LOWEST
     ceiling: float = _HIGHEST
-    label: str = 'cylinder'
+    label: str = ''
 
     def __post_init__(self) -> None:
         object.__setattr__(self, 'center', _plane_point(self.center, 'center'))
@@ -256,10 +259,37 @@ class Cylinder(TableShape):
         object.__setattr__(self, 'floor', floor)
         object.__setattr__(self, 'ceiling', ceiling)
 
+    def _row(self) -> np.ndarray:
+        return np.array([self.center[0], self.center[1], self.radius, self.floor, self.ceiling,
+                         0.0])
+
+
+@dataclass(frozen=True, eq=False)
+class Prism(_PolygonBand):
+    """Solid vertical prism: a polygon in x-y between a floor and a ceiling (a no-fly volume).
+
+    Built from ``polygon`` [m] (V, 2), ``floor`` and ``ceiling`` [m] and ``label`` (default
+    ``'prism'``), checked as :class:`_PolygonBand` says.
+    """
+
+    label: str = 'prism'
+
     def table_row(self) -> Tuple[int, np.ndarray, np.ndarray]:
-        row = np.array([self.center[0], self.center[1], self.radius, self.floor, self.ceiling,
-                        0.0])
-        return CYLINDER, row, np.empty((0, 2))
+        return PRISM, _polygon_row(self.polygon, self.floor, self.ceiling), self.polygon
+
+
+@dataclass(frozen=True, eq=False)
+class Cylinder(_CircleBand):
+    """Solid vertical cylinder (a no-fly volume).
+
+    Built from ``center`` (x, y) [m], ``radius`` [m], ``floor`` and ``ceiling`` [m] and
+    ``label`` (default ``'cylinder'``), checked as :class:`_CircleBand` says.
+    """
+
+    label: str = 'cylinder'
+
+    def table_row(self) -> Tuple[int, np.ndarray, np.ndarray]:
+        return CYLINDER, self._row(), np.empty((0, 2))
 
 
 @dataclass(frozen=True, eq=False)
@@ -294,68 +324,31 @@ class BoxZone(TableShape):
 
 
 @dataclass(frozen=True, eq=False)
-class InclusionFence(TableShape):
+class InclusionFence(_PolygonBand):
     """Operating area: a polygon in x-y between a floor and a ceiling; the vehicle stays inside.
 
     As a shape it is the *outside* of that prism: its distance is the distance to the nearest
-    wall, floor or ceiling from inside, 0 outside.
-
-    Attributes
-    ----------
-    polygon : numpy.ndarray, shape (V, 2)
-        Simple polygon [m], convex or not.
-    floor, ceiling : float
-        [m], floor < ceiling; -inf / +inf for no limit (the planning bounds still apply).
-    label : str
+    wall, floor or ceiling from inside, 0 outside. Built like :class:`Prism` (fields of
+    :class:`_PolygonBand`); without floor or ceiling the planning bounds still apply.
     """
 
-    polygon: np.ndarray
-    floor: float = _LOWEST
-    ceiling: float = _HIGHEST
     label: str = 'the inclusion fence'
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, 'polygon', checked_polygon(self.polygon))
-        floor, ceiling = _band(self.floor, self.ceiling)
-        object.__setattr__(self, 'floor', floor)
-        object.__setattr__(self, 'ceiling', ceiling)
 
     def table_row(self) -> Tuple[int, np.ndarray, np.ndarray]:
         return FENCE, _polygon_row(self.polygon, self.floor, self.ceiling), self.polygon
 
 
 @dataclass(frozen=True, eq=False)
-class InclusionCircle(TableShape):
+class InclusionCircle(_CircleBand):
     """Circular operating area (a QGroundControl inclusion circle): stay inside the cylinder.
 
-    Attributes
-    ----------
-    center : numpy.ndarray, shape (2,)
-        [m]
-    radius : float
-        [m], > 0.
-    floor, ceiling : float
-        [m], floor < ceiling; -inf / +inf for no limit.
-    label : str
+    Built like :class:`Cylinder` (fields of :class:`_CircleBand`).
     """
 
-    center: np.ndarray
-    radius: float
-    floor: float = _LOWEST
-    ceiling: float = _HIGHEST
     label: str = 'the inclusion fence'
 
-    def __post_init__(self) -> None:
-        object.__setattr__(self, 'center', _plane_point(self.center, 'center'))
-        object.__setattr__(self, 'radius', _radius(self.radius))
-        floor, ceiling = _band(self.floor, self.ceiling)
-        object.__setattr__(self, 'floor', floor)
-        object.__setattr__(self, 'ceiling', ceiling)
-
     def table_row(self) -> Tuple[int, np.ndarray, np.ndarray]:
-        row = np.array([self.center[0], self.center[1], self.radius, self.floor, self.ceiling,
-                        0.0])
-        return CIRCLE_FENCE, row, np.empty((0, 2))
+        return CIRCLE_FENCE, self._row(), np.empty((0, 2))
 
 
 Inclusion = Union[InclusionFence, InclusionCircle]
@@ -383,9 +376,9 @@ class Airspace:
             if not isinstance(item, (InclusionFence, InclusionCircle)):
                 raise InvalidInputError(f'inclusions: {type(item).__name__} is not an '
                                         'inclusion fence')
-        for item in exclusions:
-            if not isinstance(item, (Prism, Cylinder, BoxZone)):
-                raise InvalidInputError(f'exclusions: {type(item).__name__} is not an '
+        for zone in exclusions:
+            if not isinstance(zone, (Prism, Cylinder, BoxZone)):
+                raise InvalidInputError(f'exclusions: {type(zone).__name__} is not an '
                                         'exclusion zone')
         object.__setattr__(self, 'inclusions', inclusions)
         object.__setattr__(self, 'exclusions', exclusions)
@@ -553,7 +546,7 @@ def _to_plane(points: Sequence[Tuple[float, float]], origin: GeodeticOrigin) -> 
     return enu[:, :2]
 
 
-def parse_qgc_geofence(plan: Any, origin: GeodeticOrigin, floor: float = _LOWEST,
+def parse_qgc_geofence(plan: Any, origin: Optional[GeodeticOrigin], floor: float = _LOWEST,
                        ceiling: float = _HIGHEST, zone_floor: float = _LOWEST,
                        zone_ceiling: float = _HIGHEST, name: str = 'plan') -> Airspace:
     """The airspace of a QGroundControl plan (the JSON document, already loaded).
@@ -615,11 +608,12 @@ def parse_qgc_geofence(plan: Any, origin: GeodeticOrigin, floor: float = _LOWEST
                 vertices = _require(entry, 'polygon', path)
                 if not isinstance(vertices, list):
                     raise InvalidInputError(f'{path}.polygon: must be a list of [lat, lon]')
-                plane = _to_plane([_plan_point(v, f'{path}.polygon[{n}]')
-                                   for n, v in enumerate(vertices)], origin) if vertices else []
-                kind = InclusionFence if inclusion else Prism
+                plane: Union[np.ndarray, List[Any]] = _to_plane(
+                    [_plan_point(v, f'{path}.polygon[{n}]') for n, v in enumerate(vertices)],
+                    origin) if vertices else []
+                polygon_kind: Type[_PolygonBand] = InclusionFence if inclusion else Prism
                 low, high = band if inclusion else zone_band
-                shape_object = _prefixed(path, kind, plane, low, high, label=label)
+                shape_object = _prefixed(path, polygon_kind, plane, low, high, label=label)
             else:
                 circle = _require(entry, 'circle', path)
                 if not isinstance(circle, dict):
@@ -627,22 +621,18 @@ def parse_qgc_geofence(plan: Any, origin: GeodeticOrigin, floor: float = _LOWEST
                 center = _to_plane([_plan_point(_require(circle, 'center', f'{path}.circle'),
                                                 f'{path}.circle.center')], origin)[0]
                 radius = _require(circle, 'radius', f'{path}.circle')
-                kind = InclusionCircle if inclusion else Cylinder
+                circle_kind: Type[_CircleBand] = InclusionCircle if inclusion else Cylinder
                 low, high = band if inclusion else zone_band
-                shape_object = _prefixed(f'{path}.circle', kind, center, radius, low, high,
-                                         label=label)
+                shape_object = _prefixed(f'{path}.circle', circle_kind, center, radius, low,
+                                         high, label=label)
             (inclusions if inclusion else exclusions).append(shape_object)
     if len(inclusions) == 1:
         only = inclusions[0]
-        inclusions[0] = type(only)(**{**_fields(only), 'label': 'the inclusion fence'})
+        inclusions[0] = dataclasses.replace(only, label='the inclusion fence')
     return Airspace(tuple(inclusions), tuple(exclusions))
 
 
-def _fields(shape: TableShape) -> dict:
-    return {key: getattr(shape, key) for key in shape.__dataclass_fields__}
-
-
-def load_qgc_plan(path: Union[str, Path], origin: GeodeticOrigin, floor: float = _LOWEST,
+def load_qgc_plan(path: Union[str, Path], origin: Optional[GeodeticOrigin], floor: float = _LOWEST,
                   ceiling: float = _HIGHEST, zone_floor: float = _LOWEST,
                   zone_ceiling: float = _HIGHEST) -> Airspace:
     """Read the ``geoFence`` of a QGroundControl ``.plan`` file (see
@@ -757,8 +747,8 @@ def check_endpoint(obstacles: ObstacleSet, point, which: str, gamma: float,
     fence = int(obstacles.shape_kind[obstacles.zone_rows[number]]) in UNBOUNDED_KINDS
     where = [round(float(v), 6) for v in p]
     if gap <= 0.0 and fence:
-        error = StartOutsideMapError if which == 'start' else GoalOutsideMapError
-        raise error(f'{which} {where} is outside {zone.label}')
+        outside = StartOutsideMapError if which == 'start' else GoalOutsideMapError
+        raise outside(f'{which} {where} is outside {zone.label}')
     error = StartOccupiedError if which == 'start' else GoalOccupiedError
     if gap <= 0.0:
         raise error(f'{which} {where} is inside {zone.label}')

@@ -24,6 +24,10 @@ is a definite violation.
 
 Cost: samples no coarser than the given spacing along the queried geometry, each a capped
 lookup, plus refinement only where the bound is tight. Memory follows the queried length.
+
+The module is somewhat over 500 lines on purpose: the certificate, the pieces it evaluates and
+the segment and polyline checks built on it are the one implementation of every safety
+decision, kept together so that no second, weaker check can grow beside it.
 """
 
 from dataclasses import dataclass
@@ -74,6 +78,11 @@ GAUSS = {5: np.polynomial.legendre.leggauss(5)}
 @dataclass(frozen=True, eq=False)
 class Pieces:
     """Chain of cubic pieces ``p(tau) = c0 tau^3 + c1 tau^2 + c2 tau + c3``, ``tau in [0, h]``.
+
+    The coefficients are those of a :class:`~scipy.interpolate.PPoly` (``CubicSpline.c``), but the
+    engine evaluates them by piece and local parameter, not by a PPoly's global parameter: the
+    bend bound of an interval needs ``|c''|`` of *its own* piece at both ends, and at a shared
+    end a PPoly would give the next piece's (one-sided values decide the certificate there).
 
     Attributes
     ----------
@@ -191,7 +200,8 @@ def certify_samples(pieces: Pieces, piece: np.ndarray, tau: np.ndarray, pos: np.
     ia = ia[live]
     ib = ia + 1
     p, ta, tb, pa, pb, da, db = piece[ia], tau[ia], tau[ib], pos[ia], pos[ib], dist[ia], dist[ib]
-    ka = kb = None
+    ka: Optional[np.ndarray] = None
+    kb: Optional[np.ndarray] = None
     if curv is not None:
         ka, kb = curv[ia], curv[ib]
     while len(p):
@@ -200,7 +210,7 @@ def certify_samples(pieces: Pieces, piece: np.ndarray, tau: np.ndarray, pos: np.
         chord = np.sqrt(np.einsum('ij,ij->i', pb - pa, pb - pa))
         size = chord
         bound = 0.5 * (da + db - chord)
-        if ka is not None:
+        if ka is not None and kb is not None:
             bend = (tb - ta) ** 2 / 8.0 * np.maximum(ka, kb)
             bound -= bend
             size = chord + 2.0 * bend
@@ -246,7 +256,7 @@ def certify_samples(pieces: Pieces, piece: np.ndarray, tau: np.ndarray, pos: np.
         b = a + 1
         p, ta, tb = node_piece[a], node_tau[a], node_tau[b]
         pa, pb, da, db = node_pos[a], node_pos[b], node_dist[a], node_dist[b]
-        if ka is not None:
+        if ka is not None and kb is not None:
             node_curv = np.where(head, ka[src], kb[src])
             node_curv[inner] = np.linalg.norm(pieces.second(ip, it), axis=1)
             ka, kb = node_curv[a], node_curv[b]

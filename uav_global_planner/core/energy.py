@@ -37,24 +37,14 @@ import numpy as np
 
 from uav_global_planner.core.errors import InvalidInputError
 from uav_global_planner.core.result import Trajectory
+from uav_global_planner.core.settings import SETTINGS_BY_NAME
 
 #: Standard gravity [m/s^2].
 GRAVITY = 9.80665
-#: Defaults of :class:`VehicleModel`: a 1.5 kg quadcopter hovering on 180 W.
-DEFAULT_MASS_KG = 1.5
-DEFAULT_HOVER_POWER_W = 180.0
-# Accepted ranges: from a palm-sized drone to a heavy-lift multicopter.
-_MASS_RANGE = (0.0, 1000.0)
-_POWER_RANGE = (0.0, 1.0e6)
-
-
-def _number(value: Any, name: str, low: float, high: float) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise InvalidInputError(f'{name}: must be a number, got {value!r}')
-    number = float(value)
-    if not math.isfinite(number) or not low < number <= high:
-        raise InvalidInputError(f'{name}: must be in ({low}, {high}], got {number}')
-    return number
+#: Defaults of :class:`VehicleModel`: a 1.5 kg quadcopter hovering on 180 W (the settings
+#: ``vehicle_mass`` and ``hover_power`` of :mod:`uav_global_planner.core.settings`).
+DEFAULT_MASS_KG = float(SETTINGS_BY_NAME['vehicle_mass'].default)
+DEFAULT_HOVER_POWER_W = float(SETTINGS_BY_NAME['hover_power'].default)
 
 
 @dataclass(frozen=True)
@@ -64,18 +54,20 @@ class VehicleModel:
     Attributes
     ----------
     mass : float
-        Take-off mass m [kg], in (0, 1000].
+        Take-off mass m [kg], as the setting ``vehicle_mass`` accepts.
     hover_power : float
-        Electrical power to hover P_h [W], in (0, 1e6].
+        Electrical power to hover P_h [W], as the setting ``hover_power`` accepts.
     """
 
     mass: float = DEFAULT_MASS_KG
     hover_power: float = DEFAULT_HOVER_POWER_W
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, 'mass', _number(self.mass, 'vehicle.mass', *_MASS_RANGE))
-        object.__setattr__(self, 'hover_power', _number(self.hover_power, 'vehicle.hover_power',
-                                                        *_POWER_RANGE))
+        # Checked by the settings table, named by the scene key path (vehicle.mass).
+        for name, attribute in (('vehicle_mass', 'mass'), ('hover_power', 'hover_power')):
+            entry = SETTINGS_BY_NAME[name]
+            object.__setattr__(self, attribute,
+                               entry.check_key(getattr(self, attribute), str(entry.scene_key)))
 
 
 @dataclass(frozen=True)

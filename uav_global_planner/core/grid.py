@@ -12,16 +12,21 @@ import numpy as np
 from uav_global_planner.core.errors import InvalidInputError
 
 #: Default cap on the number of grid nodes; a typo such as ``resolution = 0.001`` fails at once.
-#: The planning structures take about 20 bytes a node (a 16-byte search record, a parent byte,
-#: a blocked byte per inflated grid and the open list as far as a search grows it), so 100 M nodes
-#: fit in about 2 GB: a planner on 1 km x 1 km x 100 m at delta = 1 m (101 M nodes, 300
-#: buildings) peaked at 2.0 GB of resident memory. Set ``max_voxels`` (scene files, ``uav-plan
-#: --max-voxels``, the node's parameter) to go beyond.
-DEFAULT_MAX_VOXELS = 100_000_000
+#: From 16 M nodes up the grid is block-sparse (:mod:`uav_global_planner.core.sparse_grid`):
+#: the blocked mask takes 4 bytes per brick of 512 nodes (1/128 byte a node) plus one byte a
+#: node only in the bricks an obstacle's surface crosses, and the search 17 bytes a node only
+#: in the bricks it reaches (24 more per open-list entry). A 1 km x 1 km x 120 m city at
+#: delta = 0.5 m (965 M nodes, 300 buildings) measured 0.075 bytes a node of mask and 0.02 of
+#: search state for a 1.3 km crossing, peaking near 0.5 GB of resident memory; 1.2 G nodes
+#: keep the brick tables and a mask of that kind well inside 2 GB. Set ``max_voxels`` (scene
+#: files, ``uav-plan --max-voxels``, the node's parameter) to go beyond.
+DEFAULT_MAX_VOXELS = 1_200_000_000
 
 #: How a refusal tells the user to lift the cap.
 _RAISE_CAP = ('or raise max_voxels (scene key max_voxels, uav-plan --max-voxels N or the node '
-              'parameter max_voxels; about 20 bytes of memory a node)')
+              'parameter max_voxels; memory follows the obstacle surfaces and the '
+              'search, about 1/128 byte a node of volume plus 1 byte a node near surfaces '
+              'and 17-41 bytes a node the search reaches)')
 
 # Tolerance, in cells, for floating-point extents such as 15.0 / 0.1 = 149.99999999999997.
 _CELL_EPS = 1e-9

@@ -18,10 +18,17 @@ over the same sub-blocks. Both evaluate the distance with one floating-point for
 :mod:`uav_global_planner.core.obstacles` (node coordinate ``min + i * delta``, differences
 squared and summed x, y, z in that order, then the square root), so they give identical masks
 to the last bit, ties at exactly gamma included.
+
+One module, though long (about 900 lines): every stamping kernel (spheres, boxes, points,
+zones) must use the one floating-point formula and the one window scheme of both layouts, so
+they stay side by side.
 """
 
+from concurrent.futures import ThreadPoolExecutor
 import math
-from typing import Optional
+import os
+import threading
+from typing import Optional, Union
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -30,7 +37,10 @@ from uav_global_planner.core.errors import InvalidInputError
 from uav_global_planner.core.grid import VoxelGrid
 from uav_global_planner.core.jit import JIT_ENABLED, njit
 from uav_global_planner.core.obstacles import box_distance, ObstacleSet, sphere_distance
-from uav_global_planner.core.spatial_index import shape_bounds, stamp_shapes
+from uav_global_planner.core.sparse_grid import (BRICK, choose_layout, SparseBuilder,
+                                                 SparseMask)
+from uav_global_planner.core.spatial_index import (_column_part, _finish, shape_bounds,
+                                                   stamp_shapes)
 
 # Largest number of (point, nearby node) pairs, or of nodes, handled at once by the vectorised
 # passes: bounds their temporary memory (about 100 bytes each) whatever gamma / delta and the
@@ -42,6 +52,9 @@ _PAIR_BUDGET = 1 << 18
 # vectorised visits cost about 100 ns.
 _VISITS_PER_NODE_COMPILED = 300.0
 _VISITS_PER_NODE_VECTORISED = 8.0
+
+#: A blocked mask in either layout.
+Mask = Union[np.ndarray, SparseMask]
 # Slack of the per-point index ranges, in cells and relative to the coordinates: far larger
 # than any rounding of them, far smaller than a cell. The ranges only decide which nodes are
 # tested; with the slack, every node outside them is certainly further than gamma.
@@ -50,10 +63,18 @@ _RANGE_SLACK_RELATIVE = 1e-12
 # Relative slack on gamma^2 for skipping a row whose x-y distance alone exceeds gamma: the sum
 # with a non-negative dz^2 can only grow, so the exact test could not pass anywhere on the row.
 _ROW_SLACK = 1e-9
+# Edge of the windows of the block-sparse build [nodes]: 64^3 = 262 144 nodes (a 256 KiB
+# scratch block, cache-sized), a multiple of the brick edge.
+_WINDOW = 8 * BRICK
+# Most threads a block-sparse build stamps its windows on.
+_THREADS = 4
+# Window origin of a whole-grid mask.
+_ZERO_BASE = np.zeros(3, dtype=np.int64)
+_ZERO_BASE.setflags(write=False)
 
 
 def blocked_mask(grid: VoxelGrid, obstacles: ObstacleSet, safety_margin: float,
-                 out: Optional[np.ndarray] = None) -> np.ndarray:
+                 out: Optional[np.ndarray] = None, layout: str = 'auto') -> Mask:
     """Boolean occupancy of every node: True where the distance to an obstacle is <= gamma.
 
     Parameters
@@ -64,19 +85,26 @@ def blocked_mask(grid: VoxelGrid, obstacles: ObstacleSet, safety_margin: float,
         gamma [m], >= 0.
     out : numpy.ndarray of bool, shape ``grid.shape``, optional
         C-contiguous mask to overwrite instead of allocating a new one (a live map reuses its
-        buffers).
+        buffers); implies the dense layout.
+    layout : str
+        ``'auto'``, ``'dense'`` or ``'sparse'``
+        (:func:`~uav_global_planner.core.sparse_grid.choose_layout`): by default grids from
+        :data:`~uav_global_planner.core.sparse_grid.SPARSE_MIN_NODES` nodes up get the
+        block-sparse mask. Both layouts block the same nodes, to the bit.
 
     Returns
     -------
-    numpy.ndarray of bool, shape ``grid.shape``
+    numpy.ndarray of bool, shape ``grid.shape``, or SparseMask
         ``out`` when given.
 
     Raises
     ------
     InvalidInputError
-        If ``safety_margin`` is negative or not finite.
+        If ``safety_margin`` is negative or not finite, or ``layout`` is unknown.
     """
     gamma = _checked_margin(safety_margin)
+    if out is None and choose_layout(grid.size, layout) == 'sparse':
+        return _sparse_mask(grid, obstacles, gamma)
     if out is None:
         blocked = np.zeros(grid.shape, dtype=bool)
     else:
@@ -176,6 +204,324 @@ def reinflate_tiles(grid: VoxelGrid, obstacles: ObstacleSet, safety_margin: floa
             _stamp_points(blocked, origin, delta, _in_memory_order(grid, cloud), gamma)
 
 
+def _sparse_mask(grid: VoxelGrid, obstacles: ObstacleSet, gamma: float) -> SparseMask:
+    """The block-sparse mask, window by window (module notes of
+    :mod:`~uav_global_planner.core.sparse_grid`).
+
+    The grid is cut into windows of :data:`_WINDOW` nodes a side; each obstacle is listed under
+    the windows its reach (the very index ranges of the dense passes) meets, and only windows
+    with an obstacle are stamped, into one reused dense scratch block, by the kernels of the
+    dense layout with the window's origin: node coordinates are formed from the global indices,
+    so every node's test is the dense layout's, to the bit. Time and memory follow the
+    obstacles' reach; windows no obstacle reaches cost nothing.
+    """
+    if not JIT_ENABLED:
+        builder = SparseBuilder(grid.shape)
+        dense = blocked_mask(grid, obstacles, gamma, layout='dense')
+        assert isinstance(dense, np.ndarray)
+        builder.pack(dense, _ZERO_BASE)
+        return builder.finish()
+    shape = np.asarray(grid.shape, dtype=np.int64)
+    work = _SparseWork(grid, obstacles, gamma, np.zeros(3, np.int64), shape - 1, None)
+    builder = SparseBuilder(grid.shape, capacity=len(work.busy) * (_WINDOW // BRICK) ** 3)
+    work.stamp(builder, work.busy, None)
+    return builder.finish()
+
+
+def reinflate_sparse(grid: VoxelGrid, obstacles: ObstacleSet, safety_margin: float,
+                     blocked: SparseMask, tiles: np.ndarray, tile_nodes: int,
+                     points: Optional[np.ndarray] = None) -> SparseMask:
+    """:func:`reinflate_tiles` for a block-sparse mask: a new mask (``blocked`` is not changed)
+    equal to ``blocked`` but for the nodes of the tiles, recomputed (same parameters, same
+    conditions for an exact result).
+
+    Only the build windows that hold a node of a tile are unpacked, cleared on the tiles'
+    nodes, stamped again and packed; the rest of the table is copied (4 bytes a brick) and so
+    is the pool, compacted when most of its rows are no longer used.
+    """
+    gamma = _checked_margin(safety_margin)
+    tiles = np.ascontiguousarray(np.asarray(tiles, dtype=np.int64).reshape(-1, 3))
+    size = int(tile_nodes)
+    if size < 1:
+        raise InvalidInputError(f'tile_nodes must be >= 1, got {tile_nodes}')
+    if len(tiles) == 0:
+        return blocked
+    if not JIT_ENABLED:
+        return _sparse_mask(grid, obstacles, gamma)
+    shape = np.asarray(grid.shape, dtype=np.int64)
+    # Node ranges of the tiles, clipped to the grid.
+    spans = np.stack([np.maximum(tiles * size, 0),
+                      np.minimum((tiles + 1) * size - 1, shape - 1)], axis=1)
+    first = spans[:, 0].min(axis=0)
+    last = spans[:, 1].max(axis=0)
+    cloud = obstacles.points if points is None else np.asarray(points, dtype=np.float64)
+    if len(cloud):
+        origin = np.asarray(grid.bounds_min, dtype=np.float64)
+        low = origin + first * grid.resolution - (gamma + grid.resolution)
+        high = origin + last * grid.resolution + (gamma + grid.resolution)
+        cloud = cloud[np.all((cloud >= low) & (cloud <= high), axis=1)]
+    work = _SparseWork(grid, obstacles, gamma, first, last, cloud.reshape(-1, 3))
+    tile_start, tile_items = _bucket_ranges(np.ascontiguousarray(spans), work.windows)
+    chosen = np.flatnonzero(np.diff(tile_start))
+    builder = SparseBuilder.editing(blocked, len(chosen) * (_WINDOW // BRICK) ** 3)
+    work.stamp(builder, chosen, (spans, tile_start, tile_items))
+    return builder.finish()
+
+
+class _SparseWork:
+    """The obstacles of a block-sparse build, listed under the windows their reach meets.
+
+    Ranges are clipped to the node box [first, last] (the whole grid for a build; the tiles'
+    bounding box for a re-inflation); ``points`` replaces the obstacles' points when given.
+    """
+
+    def __init__(self, grid: VoxelGrid, obstacles: ObstacleSet, gamma: float,
+                 first: np.ndarray, last: np.ndarray, points: Optional[np.ndarray]) -> None:
+        self.grid = grid
+        self.obstacles = obstacles
+        self.gamma = gamma
+        self.shape = np.asarray(grid.shape, dtype=np.int64)
+        self.windows = -(-self.shape // _WINDOW)
+        self.origin = np.ascontiguousarray(grid.bounds_min, dtype=np.float64)
+        self.delta = float(grid.resolution)
+        no_ranges = np.zeros((0, 2, 3), dtype=np.int64)
+        rows = np.asarray(obstacles.zone_rows, dtype=np.int64)
+        self.zone_ranges = no_ranges
+        if len(rows):
+            lo, hi = shape_bounds(obstacles.shape_kind[rows], obstacles.shape_params[rows])
+            self.zone_ranges = _clipped(_block_ranges(grid, lo - gamma, hi + gamma), first, last)
+        self.rows = np.ascontiguousarray(rows)
+        self.centers = np.ascontiguousarray(obstacles.sphere_centers,
+                                            dtype=np.float64).reshape(-1, 3)
+        self.radii = np.ascontiguousarray(obstacles.sphere_radii, dtype=np.float64).reshape(-1)
+        self.sphere_ranges = no_ranges
+        if len(self.radii):
+            reach = (self.radii + gamma)[:, None]
+            self.sphere_ranges = _clipped(
+                _block_ranges(grid, self.centers - reach, self.centers + reach), first, last)
+        self.mins = np.ascontiguousarray(obstacles.box_mins, dtype=np.float64).reshape(-1, 3)
+        self.maxs = np.ascontiguousarray(obstacles.box_maxs, dtype=np.float64).reshape(-1, 3)
+        self.box_ranges = no_ranges
+        if len(self.mins):
+            self.box_ranges = _clipped(_block_ranges(grid, self.mins - gamma, self.maxs + gamma),
+                                       first, last)
+        cloud = obstacles.points if points is None else points
+        self.points = np.empty((0, 3))
+        if len(cloud):
+            self.points = _relevant_points(grid, cloud, gamma)
+        self.lists = [_bucket_ranges(self.zone_ranges, self.windows),
+                      _bucket_ranges(self.sphere_ranges, self.windows),
+                      _bucket_ranges(self.box_ranges, self.windows),
+                      _bucket_points(self.points, self.origin, self.delta, gamma + self.delta,
+                                     self.shape, self.windows)]
+        #: Windows some obstacle reaches.
+        self.busy = np.flatnonzero(np.any(np.stack([np.diff(start)
+                                                    for start, _ in self.lists]), axis=0))
+
+    def stamp(self, builder: SparseBuilder, windows: np.ndarray, clear) -> None:
+        """Stamp and pack ``windows``; with ``clear`` = (tile node ranges, their window lists),
+        each window starts from the builder's bricks with the tiles' nodes cleared, else from
+        free nodes.
+
+        A full build stamps the windows on up to :data:`_THREADS` threads (the kernels release
+        the interpreter lock), each into its own scratch block; packing is serialised. The
+        rows the mixed bricks get then depend on the threads' order, the mask does not.
+        """
+        workers = min(_THREADS, _cpu_count(), len(windows) // 4)
+        if clear is not None or workers < 2:
+            scratch = self._scratch()
+            for window in windows:
+                block, base = self._stamp_window(int(window), scratch, builder, clear)
+                builder.pack(block, base)
+            return
+        lock = threading.Lock()
+
+        def run(part: np.ndarray) -> None:
+            scratch = self._scratch()
+            for window in part:
+                block, base = self._stamp_window(int(window), scratch, builder, None)
+                with lock:
+                    builder.pack(block, base)
+
+        with ThreadPoolExecutor(max_workers=workers) as pool:
+            for done in [pool.submit(run, windows[w::workers]) for w in range(workers)]:
+                done.result()
+
+    def _scratch(self) -> np.ndarray:
+        return np.zeros(int(np.prod(np.minimum(self.shape, _WINDOW))), dtype=np.bool_)
+
+    def _stamp_window(self, window: int, scratch: np.ndarray, builder: SparseBuilder, clear):
+        """One window stamped into ``scratch``: the dense block and its first node."""
+        obstacles = self.obstacles
+        gamma = self.gamma
+        base = np.asarray(np.unravel_index(window, tuple(self.windows)), np.int64) * _WINDOW
+        extent = tuple(int(e) for e in np.minimum(self.shape - base, _WINDOW))
+        block = scratch[:int(np.prod(extent))].reshape(extent)
+        if clear is None:
+            block[...] = False
+        else:
+            spans, start, found = clear
+            builder.unpack(block, base)
+            _clear_ranges(block, base, spans, found[start[window]:start[window + 1]])
+        items = [found[start[window]:start[window + 1]] for start, found in self.lists]
+        if len(items[0]):
+            _stamp_shapes_in(block, base, self.origin, self.delta, self.zone_ranges, self.rows,
+                             items[0], obstacles.shape_kind, obstacles.shape_params,
+                             obstacles.shape_vertices, obstacles.shape_vstart, gamma)
+        if len(items[1]):
+            _stamp_spheres_in(block, base, self.origin, self.delta, self.sphere_ranges,
+                              items[1], self.centers, self.radii, gamma)
+        if len(items[2]):
+            _stamp_boxes_in(block, base, self.origin, self.delta, self.box_ranges, items[2],
+                            self.mins, self.maxs, gamma)
+        if len(items[3]):
+            if len(items[3]) * _ball_visits(self.grid, 1, gamma) > (
+                    _VISITS_PER_NODE_COMPILED * block.size):
+                _mark_by_nearest_point_in(self.grid, self.points[items[3]], gamma, block, base)
+            else:
+                _stamp_points_in(block, base, self.origin, self.delta, self.points, items[3],
+                                 gamma)
+        return block, base
+
+
+def _cpu_count() -> int:
+    """Processors this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+def _clipped(ranges: np.ndarray, first: np.ndarray, last: np.ndarray) -> np.ndarray:
+    """Index ranges clipped to the node box [first, last] (empty ones stay empty)."""
+    out = ranges.copy()
+    out[:, 0] = np.maximum(out[:, 0], first)
+    out[:, 1] = np.minimum(out[:, 1], last)
+    return np.ascontiguousarray(out)
+
+
+@njit
+def _clear_ranges(block, base, spans, items):  # pragma: no cover - compiled
+    """Clear the nodes of the ranges ``spans[items]`` inside the window ``block`` (from node
+    ``base`` on)."""
+    for n in range(items.shape[0]):
+        i0, i1, j0, j1, k0, k1 = _window(spans, items[n], base, block)
+        for i in range(i0, i1 + 1):
+            for j in range(j0, j1 + 1):
+                for k in range(k0, k1 + 1):
+                    block[i - base[0], j - base[1], k - base[2]] = False
+
+
+@njit
+def _list_item(start, fill, items, step, item, lo, hi, windows):  # pragma: no cover - compiled
+    """One item's part of a two-pass window listing: pass 0 (``step`` 0) counts it under each
+    window from ``lo`` to ``hi`` (window indices, inclusive, per axis) in ``start[w + 1]``;
+    pass 1 writes it at ``fill[w]`` of ``items``."""
+    for a in range(lo[0], hi[0] + 1):
+        for b in range(lo[1], hi[1] + 1):
+            for c in range(lo[2], hi[2] + 1):
+                w = (a * windows[1] + b) * windows[2] + c
+                if step:
+                    items[fill[w]] = item
+                    fill[w] += 1
+                else:
+                    start[w + 1] += 1
+
+
+@njit
+def _bucket_ranges(ranges, windows):  # pragma: no cover - compiled
+    """Items listed under the windows their index ranges meet: ``start`` (one per window and one
+    more) and ``items`` (C order over windows, items in order within a window)."""
+    count = windows[0] * windows[1] * windows[2]
+    start = np.zeros(count + 1, dtype=np.int64)
+    lo = np.empty(3, dtype=np.int64)
+    hi = np.empty(3, dtype=np.int64)
+    for step in range(2):
+        fill = start[:-1].copy()
+        items = np.empty(start[count] if step else 0, dtype=np.int32)
+        for s in range(ranges.shape[0]):
+            if (ranges[s, 0, 0] > ranges[s, 1, 0] or ranges[s, 0, 1] > ranges[s, 1, 1]
+                    or ranges[s, 0, 2] > ranges[s, 1, 2]):
+                continue
+            for axis in range(3):
+                lo[axis] = ranges[s, 0, axis] // _WINDOW
+                hi[axis] = ranges[s, 1, axis] // _WINDOW
+            _list_item(start, fill, items, step, s, lo, hi, windows)
+        if not step:
+            for w in range(count):
+                start[w + 1] += start[w]
+    return start, items
+
+
+@njit
+def _bucket_points(points, origin, delta, reach, shape, windows):  # pragma: no cover
+    """As :func:`_bucket_ranges` for the points, whose range is every node within ``reach`` [m]
+    (gamma and a cell of slack: wider than what the stamping visits)."""
+    count = windows[0] * windows[1] * windows[2]
+    start = np.zeros(count + 1, dtype=np.int64)
+    lo = np.empty(3, dtype=np.int64)
+    hi = np.empty(3, dtype=np.int64)
+    inverse = 1.0 / delta
+    cells = reach * inverse
+    for step in range(2):
+        fill = start[:-1].copy()
+        items = np.empty(start[count] if step else 0, dtype=np.int32)
+        for n in range(points.shape[0]):
+            empty = False
+            for axis in range(3):
+                cell = (points[n, axis] - origin[axis]) * inverse
+                low = cell - cells
+                high = cell + cells
+                low = min(max(low, -2.0), shape[axis] + 1.0)
+                high = min(max(high, -2.0), shape[axis] + 1.0)
+                lo[axis] = max(int(math.floor(low)), 0) // _WINDOW
+                hi[axis] = min(int(math.ceil(high)), shape[axis] - 1) // _WINDOW
+                if math.floor(low) > shape[axis] - 1 or math.ceil(high) < 0:
+                    empty = True
+            if empty:
+                continue
+            _list_item(start, fill, items, step, n, lo, hi, windows)
+        if not step:
+            for w in range(count):
+                start[w + 1] += start[w]
+    return start, items
+
+
+@njit
+def _stamp_shapes_in(blocked, base, origin, delta, ranges, rows, items, kind, prm, verts,
+                     vstart, gamma):  # pragma: no cover - compiled
+    """:func:`~uav_global_planner.core.spatial_index.stamp_shapes` on the window ``blocked`` of
+    the grid from node ``base`` on, for the table rows ``rows[items]`` (their index ranges
+    ``ranges[items]``); the very same per-node test."""
+    for n in range(items.shape[0]):
+        r = items[n]
+        s = rows[r]
+        i0, i1, j0, j1, k0, k1 = _window(ranges, r, base, blocked)
+        for i in range(i0, i1 + 1):
+            x = origin[0] + i * delta
+            for j in range(j0, j1 + 1):
+                y = origin[1] + j * delta
+                part = _column_part(kind, prm, verts, vstart, s, x, y)
+                for k in range(k0, k1 + 1):
+                    if max(_finish(kind, prm, s, part, origin[2] + k * delta), 0.0) <= gamma:
+                        blocked[i - base[0], j - base[1], k - base[2]] = True
+
+
+def _mark_by_nearest_point_in(grid: VoxelGrid, points: np.ndarray, gamma: float,
+                              block: np.ndarray, base: np.ndarray) -> None:
+    """:func:`_mark_by_nearest_point` for the nodes of one window (from node ``base`` on)."""
+    tree = cKDTree(points)
+    upper = gamma + 1e-9 * (1.0 + gamma)
+    axes = [np.arange(base[a], base[a] + block.shape[a]) for a in range(3)]
+    flat = block.reshape(-1)
+    local = np.stack(np.unravel_index(np.arange(block.size), block.shape), axis=-1)
+    for first in range(0, block.size, _PAIR_BUDGET):
+        part = local[first:first + _PAIR_BUDGET]
+        indices = np.stack([axes[a][part[:, a]] for a in range(3)], axis=-1)
+        nearest, _ = tree.query(grid.index_to_world(indices), distance_upper_bound=upper)
+        flat[first:first + len(part)] |= nearest <= gamma
+
+
 def _checked_margin(safety_margin: float) -> float:
     gamma = float(safety_margin)
     if not np.isfinite(gamma) or gamma < 0.0:
@@ -250,6 +596,8 @@ def _relevant_points(grid: VoxelGrid, points: np.ndarray, gamma: float) -> np.nd
     reach = gamma + grid.resolution
     inside = grid.contains(points) | np.all(
         (points > grid.bounds_min - reach) & (points < grid.bounds_max + reach), axis=-1)
+    if inside.all():
+        return np.ascontiguousarray(points, dtype=np.float64)  # no copy of a large map
     return np.ascontiguousarray(points[inside], dtype=np.float64)
 
 
@@ -319,85 +667,118 @@ def _ball_visits(grid: VoxelGrid, count: int, gamma: float) -> float:
     return count * per_point
 
 
+def _stamp_spheres(blocked, origin, delta, ranges, centers, radii, gamma) -> None:
+    """Every sphere's nodes within gamma, on a whole-grid mask."""
+    _stamp_spheres_in(blocked, _ZERO_BASE, origin, delta, ranges,
+                      np.arange(len(radii), dtype=np.int64), centers, radii, gamma)
+
+
 @njit
-def _stamp_spheres(blocked, origin, delta, ranges, centers, radii, gamma):  # pragma: no cover
+def _window(ranges, s, base, blocked):  # pragma: no cover - compiled
+    """Index range of item ``s`` clipped to the window ``blocked`` of the grid at ``base``."""
+    return (max(ranges[s, 0, 0], base[0]), min(ranges[s, 1, 0], base[0] + blocked.shape[0] - 1),
+            max(ranges[s, 0, 1], base[1]), min(ranges[s, 1, 1], base[1] + blocked.shape[1] - 1),
+            max(ranges[s, 0, 2], base[2]), min(ranges[s, 1, 2], base[2] + blocked.shape[2] - 1))
+
+
+@njit
+def _stamp_spheres_in(blocked, base, origin, delta, ranges, items, centers, radii,
+                      gamma):  # pragma: no cover - compiled
     # The distance is formed exactly as in obstacles._nearest_sphere_gap, dx, dy, dz being the
     # node minus the centre; the node is blocked iff max(gap, 0) <= gamma, i.e. gap <= gamma.
     # Along a z row the computed dz is monotone in k (rounding is monotone), so the computed
     # distance falls and then rises: the blocked nodes of a row are one run. Its two ends are
-    # found with the exact test and the nodes between them are blocked without one.
-    for s in range(radii.shape[0]):
-        for i in range(ranges[s, 0, 0], ranges[s, 1, 0] + 1):
+    # found with the exact test and the nodes between them are blocked without one. The mask
+    # ``blocked`` is the window of the grid from node ``base`` on (indices stay global).
+    for n in range(items.shape[0]):
+        s = items[n]
+        i0, i1, j0, j1, k0, k1 = _window(ranges, s, base, blocked)
+        for i in range(i0, i1 + 1):
             dx = (origin[0] + i * delta) - centers[s, 0]
-            for j in range(ranges[s, 0, 1], ranges[s, 1, 1] + 1):
+            for j in range(j0, j1 + 1):
                 dy = (origin[1] + j * delta) - centers[s, 1]
                 row = dx * dx + dy * dy
-                first = ranges[s, 0, 2]
-                last = ranges[s, 1, 2]
-                while first <= last and not _sphere_hit(origin[2] + first * delta, row,
-                                                        centers[s, 2], radii[s], gamma):
-                    first += 1
-                while last > first and not _sphere_hit(origin[2] + last * delta, row,
-                                                       centers[s, 2], radii[s], gamma):
-                    last -= 1
-                for k in range(first, last + 1):
-                    blocked[i, j, k] = True
+                _stamp_row(blocked, base, i, j, k0, k1, origin[2], delta, row, False,
+                           centers[s, 2], radii[s], gamma)
 
 
 @njit
-def _sphere_hit(z, row, center_z, radius, gamma):  # pragma: no cover - compiled
-    dz = z - center_z
-    return math.sqrt(row + dz * dz) - radius <= gamma
+def _row_hit(z, row, box, a, b, gamma):  # pragma: no cover - compiled
+    """Exact test of the node at height ``z`` [m] of a row whose horizontal part of the squared
+    distance is ``row`` [m^2]: a sphere of centre height ``a`` and radius ``b`` or, ``box``
+    True, a box from height ``a`` to ``b`` [m]."""
+    if box:
+        ez = max(max(a - z, z - b), 0.0)
+        return math.sqrt(row + ez * ez) <= gamma
+    dz = z - a
+    return math.sqrt(row + dz * dz) - b <= gamma
 
 
 @njit
-def _stamp_boxes(blocked, origin, delta, ranges, mins, maxs, gamma):  # pragma: no cover
+def _stamp_row(blocked, base, i, j, k0, k1, origin_z, delta, row, box, a, b,
+               gamma):  # pragma: no cover - compiled
+    """Block the run of hit nodes of row (i, j) within k0..k1 (:func:`_row_hit` of ``box``,
+    ``a``, ``b``): its two ends found with the exact test, the nodes between them blocked."""
+    first = k0
+    last = k1
+    while first <= last and not _row_hit(origin_z + first * delta, row, box, a, b, gamma):
+        first += 1
+    while last > first and not _row_hit(origin_z + last * delta, row, box, a, b, gamma):
+        last -= 1
+    for k in range(first, last + 1):
+        blocked[i - base[0], j - base[1], k - base[2]] = True
+
+
+def _stamp_boxes(blocked, origin, delta, ranges, mins, maxs, gamma) -> None:
+    """Every box's nodes within gamma, on a whole-grid mask."""
+    _stamp_boxes_in(blocked, _ZERO_BASE, origin, delta, ranges,
+                    np.arange(len(mins), dtype=np.int64), mins, maxs, gamma)
+
+
+@njit
+def _stamp_boxes_in(blocked, base, origin, delta, ranges, items, mins, maxs,
+                    gamma):  # pragma: no cover - compiled
     # obstacles.box_distance per node: the excess beyond the box along each axis,
     # max(lo - p, p - hi, 0), squared and summed x, y, z, then the square root. The excess
     # along z falls and then rises with k, so, as for spheres, each row's blocked nodes are one
     # run between two ends found by the exact test.
-    for b in range(mins.shape[0]):
-        for i in range(ranges[b, 0, 0], ranges[b, 1, 0] + 1):
+    for n in range(items.shape[0]):
+        b = items[n]
+        i0, i1, j0, j1, k0, k1 = _window(ranges, b, base, blocked)
+        for i in range(i0, i1 + 1):
             x = origin[0] + i * delta
             ex = max(max(mins[b, 0] - x, x - maxs[b, 0]), 0.0)
-            for j in range(ranges[b, 0, 1], ranges[b, 1, 1] + 1):
+            for j in range(j0, j1 + 1):
                 y = origin[1] + j * delta
                 ey = max(max(mins[b, 1] - y, y - maxs[b, 1]), 0.0)
                 row = ex * ex + ey * ey
-                first = ranges[b, 0, 2]
-                last = ranges[b, 1, 2]
-                while first <= last and not _box_hit(origin[2] + first * delta, row,
-                                                     mins[b, 2], maxs[b, 2], gamma):
-                    first += 1
-                while last > first and not _box_hit(origin[2] + last * delta, row,
-                                                    mins[b, 2], maxs[b, 2], gamma):
-                    last -= 1
-                for k in range(first, last + 1):
-                    blocked[i, j, k] = True
+                _stamp_row(blocked, base, i, j, k0, k1, origin[2], delta, row, True,
+                           mins[b, 2], maxs[b, 2], gamma)
 
 
 @njit
-def _box_hit(z, row, low, high, gamma):  # pragma: no cover - compiled
-    ez = max(max(low - z, z - high), 0.0)
-    return math.sqrt(row + ez * ez) <= gamma
-
-
-@njit
-def _index_range(center, origin, delta, half, slack, count):  # pragma: no cover - compiled
-    """First and last node index within ``half`` metres of ``center`` on one axis, widened by
-    ``slack`` cells and clipped to [0, count - 1] (first > last when empty)."""
-    low = (center - origin - half) / delta - slack
-    high = (center - origin + half) / delta + slack
+def _index_range(cell, reach, start, count):  # pragma: no cover - compiled
+    """First and last node index within ``reach`` cells of position ``cell`` [cells] on one
+    axis, clipped to [start, start + count - 1] (first > last when empty)."""
+    low = cell - reach
+    high = cell + reach
     # Clipped before the cast, so that far points cannot overflow it.
-    low = min(max(low, -2.0), count + 1.0)
-    high = min(max(high, -2.0), count + 1.0)
-    first = max(int(math.floor(low)), 0)
-    last = min(int(math.ceil(high)), count - 1)
+    low = min(max(low, start - 2.0), start + count + 1.0)
+    high = min(max(high, start - 2.0), start + count + 1.0)
+    first = max(int(math.floor(low)), start)
+    last = min(int(math.ceil(high)), start + count - 1)
     return first, last
 
 
+def _stamp_points(blocked, origin, delta, points, gamma) -> None:
+    """Every node within gamma of one of ``points``, on a whole-grid mask."""
+    _stamp_points_in(blocked, _ZERO_BASE, origin, delta, points,
+                     np.arange(len(points), dtype=np.int64), gamma)
+
+
 @njit
-def _stamp_points(blocked, origin, delta, points, gamma):  # pragma: no cover - compiled
+def _stamp_points_in(blocked, base, origin, delta, points, items,
+                     gamma):  # pragma: no cover - compiled
     # Each point visits the nodes of its ball: the x range within gamma, for each x the y range
     # within sqrt(gamma^2 - dx^2), for each (x, y) the z range within sqrt(gamma^2 - dx^2 - dy^2),
     # every range widened by a slack far above rounding. Which nodes are blocked is decided by
@@ -406,28 +787,36 @@ def _stamp_points(blocked, origin, delta, points, gamma):  # pragma: no cover - 
     # cloud whose balls overlap, would be mispredicted about as often as not).
     nx, ny, nz = blocked.shape
     squared = gamma * gamma * (1.0 + _ROW_SLACK)
-    for n in range(points.shape[0]):
+    inverse = 1.0 / delta
+    for m in range(items.shape[0]):
+        n = items[m]
         px = points[n, 0]
         py = points[n, 1]
         pz = points[n, 2]
         scale = abs(px) + abs(py) + abs(pz) + abs(origin[0]) + abs(origin[1]) + abs(origin[2])
-        slack = _RANGE_SLACK_CELLS + _RANGE_SLACK_RELATIVE * (scale + gamma) / delta
-        i0, i1 = _index_range(px, origin[0], delta, gamma, slack, nx)
+        slack = _RANGE_SLACK_CELLS + _RANGE_SLACK_RELATIVE * (scale + gamma) * inverse
+        # Positions in cells; a product by 1 / delta instead of a quotient errs by far less
+        # than the slack, and only decides which nodes are tested.
+        cx = (px - origin[0]) * inverse
+        cy = (py - origin[1]) * inverse
+        cz = (pz - origin[2]) * inverse
+        i0, i1 = _index_range(cx, gamma * inverse + slack, base[0], nx)
         for i in range(i0, i1 + 1):
             dx = (origin[0] + i * delta) - px
             across = squared - dx * dx
             if across < 0.0:
                 continue
-            j0, j1 = _index_range(py, origin[1], delta, math.sqrt(across), slack, ny)
+            j0, j1 = _index_range(cy, math.sqrt(across) * inverse + slack, base[1], ny)
             for j in range(j0, j1 + 1):
                 dy = (origin[1] + j * delta) - py
                 row = dx * dx + dy * dy
                 if row > squared:
                     continue
-                first, last = _index_range(pz, origin[2], delta, math.sqrt(squared - row),
-                                           slack, nz)
+                first, last = _index_range(cz, math.sqrt(squared - row) * inverse + slack,
+                                           base[2], nz)
                 for k in range(first, last + 1):
-                    blocked[i, j, k] |= _point_hit(origin[2] + k * delta, row, pz, gamma)
+                    blocked[i - base[0], j - base[1], k - base[2]] |= _point_hit(
+                        origin[2] + k * delta, row, pz, gamma)
 
 
 @njit

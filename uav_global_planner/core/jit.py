@@ -9,10 +9,12 @@ first run pays the compile time.
 """
 
 import os
-from typing import Any, Callable, Optional
+from types import ModuleType
+from typing import Any, Callable, Dict, Optional
 
 _DISABLED = os.environ.get('UAV_PLANNER_DISABLE_JIT', '') == '1'
 
+numba: Optional[ModuleType]
 try:
     if _DISABLED:
         raise ImportError('disabled by UAV_PLANNER_DISABLE_JIT=1')
@@ -31,9 +33,9 @@ def njit(func: Optional[Callable] = None, **options: Any) -> Any:
     override the defaults ``cache=True, nogil=True`` and are ignored without the JIT.
     """
     def decorate(function: Callable) -> Callable:
-        if not JIT_ENABLED:
+        if numba is None:
             return function
-        settings = {'cache': True, 'nogil': True}
+        settings: Dict[str, Any] = {'cache': True, 'nogil': True}
         settings.update(options)
         return numba.njit(**settings)(function)
 

@@ -39,13 +39,17 @@ gamma of it, so a change can only affect the nodes within gamma of a shape added
 of a cell whose points differ: the tiles within ``ceil(gamma / (T delta)) + 1`` tiles of it
 (:func:`reach_tiles`). Points outside the grid are counted in its border cells, which keeps the
 rule: clamping a point into the grid moves it towards every node.
+
+One module, though long (about 1200 lines): the point-cell index, its compiled kernels and the
+tile-wise mask writer share the cell geometry, the fingerprints and the tile numbering; each
+kernel is private to the structure it serves.
 """
 
 from dataclasses import dataclass
 import math
 import threading
 import time
-from typing import Dict, Hashable, Iterable, List, Mapping, Optional, Sequence, Tuple
+from typing import Dict, Hashable, Iterable, List, Mapping, Optional, Sequence, Tuple, Union
 
 import numpy as np
 from scipy import ndimage
@@ -54,10 +58,12 @@ from scipy.spatial import cKDTree
 from uav_global_planner.core.config import PlannerConfig
 from uav_global_planner.core.errors import InvalidInputError
 from uav_global_planner.core.grid import VoxelGrid
-from uav_global_planner.core.inflation import blocked_mask, reinflate_tiles
+from uav_global_planner.core.inflation import (blocked_mask, Mask, reinflate_sparse,
+                                               reinflate_tiles)
 from uav_global_planner.core.jit import JIT_ENABLED, njit
 from uav_global_planner.core.obstacles import Box, Obstacle, ObstacleSet, PointSet, Sphere
 from uav_global_planner.core.planner import fallback_margin
+from uav_global_planner.core.sparse_grid import choose_layout, SparseMask
 
 #: Aimed-at cell edge [m]: about the distance cap of the clearance engine's queries (gamma plus
 #: a metre), so a query reads a few cells per axis, and small enough that a local change
@@ -223,8 +229,8 @@ class PointCells:
         self._tree: Optional[cKDTree] = None
         self._tree_lock = threading.Lock()
 
-    def _build(self, raw: np.ndarray, shape: Tuple[int, int, int],
-               coarse: Tuple[int, int, int]) -> None:
+    def _build(self, raw: np.ndarray, shape: Tuple[int, ...],
+               coarse: Tuple[int, ...]) -> None:
         """Index a cloud from scratch (linear time: a counting sort by cell)."""
         geometry = self.geometry
         count = geometry.count
@@ -386,17 +392,17 @@ def changed_cells(first: Optional[PointCells], second: Optional[PointCells],
     for cloud in (first, second):
         if cloud is not None and cloud.geometry.key != geometry.key:
             raise InvalidInputError('the clouds were bucketed for different grids')
-    if first is None and second is None:
-        return np.empty(0, dtype=np.int64)
     if first is None or second is None:
-        return (second if first is None else first).occupied_cells()
+        only = first if first is not None else second
+        return np.empty(0, dtype=np.int64) if only is None else only.occupied_cells()
     out = np.empty(geometry.count, dtype=np.int64)
     found = _compare_cells(first.start, first._fingerprints, first.points, second.start,
                            second._fingerprints, second.points, out)
     return out[:found].copy()
 
 
-def dilate_cells(flat: np.ndarray, dims: Sequence[int], reach: int) -> np.ndarray:
+def dilate_cells(flat: np.ndarray, dims: Union[Sequence[int], np.ndarray],
+                 reach: int) -> np.ndarray:
     """Flat numbers of the cells within ``reach`` cells (Chebyshev) of the given ones.
 
     Parameters
@@ -839,10 +845,11 @@ class MaskBuffers:
         self.reach = reach_tiles(self.safety_margin, self.geometry)
         self._buffers: List[_Buffer] = []
         self._newest: Optional[_Buffer] = None
+        self._sparse_newest: Optional[SparseMask] = None
 
     def write(self, obstacles: ObstacleSet, version: int, changed: Optional[np.ndarray],
               layers: Sequence[PointCells] = (),
-              held: Optional[np.ndarray] = None) -> Tuple[np.ndarray, MaskUpdate]:
+              held: Optional[np.ndarray] = None) -> Tuple[Mask, MaskUpdate]:
         """Write the mask of ``obstacles`` (map ``version``) and make it the newest.
 
         Parameters
@@ -864,6 +871,8 @@ class MaskBuffers:
         update : MaskUpdate
         """
         started = time.perf_counter()
+        if choose_layout(self.grid.size) == 'sparse':
+            return self._write_sparse(obstacles, changed, layers, started)
         buffer = next((b for b in self._buffers
                        if b is not self._newest and b.mask is not held), None)
         if buffer is None:
@@ -890,6 +899,30 @@ class MaskBuffers:
         self._newest = buffer
         return buffer.mask, MaskUpdate(update.full, update.tiles, update.points,
                                        time.perf_counter() - started)
+
+    def _write_sparse(self, obstacles: ObstacleSet, changed: Optional[np.ndarray],
+                      layers: Sequence[PointCells],
+                      started: float) -> Tuple[SparseMask, MaskUpdate]:
+        """:meth:`write` on a block-sparse grid: each mask is a new object (no buffers; the
+        old one stays intact for its readers), built whole or from the newest one with the
+        changed tiles re-inflated."""
+        newest = self._sparse_newest
+        tiles = int(np.prod(self.geometry.tiles))
+        if newest is None or changed is None or len(changed) > FULL_REBUILD_FRACTION * tiles:
+            mask = blocked_mask(self.grid, obstacles, self.safety_margin)
+            update = MaskUpdate(True, tiles, len(obstacles.points), 0.0)
+        else:
+            near = self._points_near(changed, layers)
+            index = np.stack(np.unravel_index(
+                np.asarray(changed, dtype=np.int64),
+                tuple(int(t) for t in self.geometry.tiles)), axis=-1)
+            mask = reinflate_sparse(self.grid, obstacles, self.safety_margin, newest, index,
+                                    self.geometry.tile_nodes, near)
+            update = MaskUpdate(False, len(changed), len(near), 0.0)
+        assert isinstance(mask, SparseMask)
+        self._sparse_newest = mask
+        return mask, MaskUpdate(update.full, update.tiles, update.points,
+                                time.perf_counter() - started)
 
     def _points_near(self, tiles: np.ndarray, layers: Sequence[PointCells]) -> np.ndarray:
         """Every layer point within gamma of a node of the tiles (and a few more)."""
@@ -959,7 +992,7 @@ class LiveMap:
     Attributes
     ----------
     obstacles : LiveObstacles
-    blocked : numpy.ndarray of bool
+    blocked : numpy.ndarray of bool, or SparseMask
         Inflated mask of ``grid_key`` (read-only by contract: the builder rewrites the buffer
         only once no reader holds it).
     grid_key : tuple
@@ -970,19 +1003,19 @@ class LiveMap:
         What the mask cost.
     index_time_s : float
         Time spent indexing a new cloud and finding its changed cells [s].
-    fallback : numpy.ndarray of bool, optional
+    fallback : numpy.ndarray of bool, or SparseMask, optional
         Mask of the same obstacles for the planner's conservative fallback margin
         (:func:`~uav_global_planner.core.planner.fallback_margin`), once asked for
         (:attr:`LiveMapBuilder.want_fallback`).
     """
 
     obstacles: LiveObstacles
-    blocked: np.ndarray
+    blocked: Mask
     grid_key: tuple
     version: int
     update: MaskUpdate
     index_time_s: float
-    fallback: Optional[np.ndarray] = None
+    fallback: Optional[Mask] = None
 
 
 #: Pass as ``cloud`` to :meth:`LiveMapBuilder.update` to keep the cloud.
@@ -993,10 +1026,10 @@ def same_shape(first: Obstacle, second: Obstacle) -> bool:
     """True when two shapes are of one type with bit-identical parameters."""
     if type(first) is not type(second):
         return False
-    if isinstance(first, Sphere):
+    if isinstance(first, Sphere) and isinstance(second, Sphere):
         return (bool(np.array_equal(first.center, second.center))
                 and first.radius == second.radius)
-    if isinstance(first, Box):
+    if isinstance(first, Box) and isinstance(second, Box):
         return (bool(np.array_equal(first.min, second.min))
                 and bool(np.array_equal(first.max, second.max)))
     return first is second
@@ -1074,7 +1107,7 @@ class LiveMapBuilder:
         config = self._config
         grid_key = config.grid_key()
         regrid = self._buffers is None or grid_key != self._grid_key
-        new_geometry = regrid and (self._buffers is None or (
+        new_geometry = regrid and (self._buffers is None or self._grid_key is None or (
             grid_key[:3] != self._grid_key[:3]))
         if regrid:
             grid = VoxelGrid.from_bounds(config.bounds_min, config.bounds_max,
@@ -1083,6 +1116,7 @@ class LiveMapBuilder:
             self._fallback_buffers = None
             self._grid_key = grid_key
         buffers = self._buffers
+        assert buffers is not None  # made above when there were none
         geometry = buffers.geometry
         indexing_started = time.perf_counter()
         if new_geometry:
@@ -1123,12 +1157,13 @@ class LiveMapBuilder:
         if moved or self._newest is None:
             self._version += 1
             layers = [layer for layer in (self._prior, self._cloud) if layer is not None]
-            obstacles = LiveObstacles([self._shapes[key] for key in sorted(self._shapes)],
-                                      layers)
+            # Keys are orderable as well as hashable (marker (ns, id) pairs, names).
+            keys = sorted(self._shapes)  # type: ignore[type-var]
+            obstacles = LiveObstacles([self._shapes[key] for key in keys], layers)
         else:
             obstacles = self._newest.obstacles
             layers = list(obstacles.layers)
-        if regrid or moved:
+        if regrid or moved or self._newest is None:
             tiles = None if regrid else _changed_tiles(buffers, moved_shapes, moved_cells)
             mask, update = buffers.write(obstacles, self._version, tiles, layers, held)
         else:
@@ -1143,14 +1178,15 @@ class LiveMapBuilder:
 
     def _write_fallback(self, obstacles: LiveObstacles, layers: Sequence[PointCells],
                         moved_shapes: List[Obstacle], moved_cells: List[np.ndarray],
-                        moved: bool, held: Optional[np.ndarray]) -> np.ndarray:
+                        moved: bool, held: Optional[np.ndarray]) -> Mask:
         """The mask for the planner's fallback margin, kept up to date like the other."""
         buffers = self._fallback_buffers
         if buffers is None:
+            assert self._buffers is not None  # update() makes them first
             buffers = self._fallback_buffers = MaskBuffers(self._buffers.grid,
                                                            fallback_margin(self._config))
             return buffers.write(obstacles, self._version, None, layers, held)[0]
-        if moved or self._newest.fallback is None:
+        if moved or self._newest is None or self._newest.fallback is None:
             tiles = _changed_tiles(buffers, moved_shapes, moved_cells) if moved else None
             return buffers.write(obstacles, self._version, tiles, layers, held)[0]
         return self._newest.fallback

@@ -201,7 +201,10 @@ class ObstacleSet:
         self.sphere_radii = np.array([s.radius for s in spheres], dtype=np.float64)
         self.box_mins = np.array([b.min for b in boxes]).reshape(-1, 3)
         self.box_maxs = np.array([b.max for b in boxes]).reshape(-1, 3)
-        self.points = (np.concatenate(clouds) if clouds else np.empty((0, 3)))
+        # One cloud (a map file) is kept as it is: a copy of millions of points would double
+        # their memory.
+        self.points = (clouds[0] if len(clouds) == 1
+                       else np.concatenate(clouds) if clouds else np.empty((0, 3)))
         self._tree = cKDTree(self.points) if len(self.points) else None
         sphere_rows = np.zeros((len(spheres), 6))
         sphere_rows[:, :3] = self.sphere_centers

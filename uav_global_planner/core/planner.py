@@ -6,12 +6,16 @@ failure: it returns a :class:`~uav_global_planner.core.result.PlanResult` whose 
 what happened, so the ROS node and the command-line tool report failures the same way.
 
 Not thread-safe: call it from one thread at a time.
+
+One module, though long (about 650 lines): the facade's plan, its legs through via-points, the
+budget and the fallback grid are one sequence of stages over one grid and one set of
+workspaces.
 """
 
 from dataclasses import dataclass, replace
 import math
 import time
-from typing import Callable, List, Optional, Sequence, Tuple
+from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -25,11 +29,12 @@ from uav_global_planner.core.errors import (GoalOccupiedError, GoalOutsideMapErr
                                             PlanningError, StartOccupiedError,
                                             StartOutsideMapError)
 from uav_global_planner.core.grid import as_point, VoxelGrid
-from uav_global_planner.core.inflation import blocked_mask
+from uav_global_planner.core.inflation import blocked_mask, Mask
 from uav_global_planner.core.obstacles import ObstacleSet
 from uav_global_planner.core.result import LegResult, PlanResult, polyline_length, Trajectory
 from uav_global_planner.core.search import SearchWorkspace
 from uav_global_planner.core.smoothing import smooth_path
+from uav_global_planner.core.sparse_grid import first_free_node
 from uav_global_planner.core.status import PlanStatus
 from uav_global_planner.core.timing import time_parameterize
 
@@ -45,7 +50,7 @@ _ENDPOINT_TOLERANCE = 1e-5
 _SNAP_TOLERANCE = 1e-9
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, kw_only=True)
 class ClearanceVerdict:
     """Outcome of :meth:`Planner.plan_is_clear`.
 
@@ -69,7 +74,7 @@ class _InflatedGrid:
     """A grid and its blocked mask for one safety margin."""
 
     def __init__(self, grid: VoxelGrid, obstacles: ObstacleSet, margin: float,
-                 blocked: Optional[np.ndarray] = None) -> None:
+                 blocked: Optional[Mask] = None) -> None:
         started = time.perf_counter()
         self.grid = grid
         self.margin = margin
@@ -135,7 +140,7 @@ class Planner:
         return self._primary().grid
 
     @property
-    def blocked(self) -> np.ndarray:
+    def blocked(self) -> Mask:
         """Occupancy of every node for the current settings, shape ``grid.shape``."""
         return self._primary().blocked
 
@@ -161,9 +166,9 @@ class Planner:
         self._obstacles = obstacles
         self._invalidate()
 
-    def set_map(self, obstacles: ObstacleSet, blocked: Optional[np.ndarray],
+    def set_map(self, obstacles: ObstacleSet, blocked: Optional[Mask],
                 grid_key: Optional[tuple] = None,
-                fallback: Optional[np.ndarray] = None) -> bool:
+                fallback: Optional[Mask] = None) -> bool:
         """Replace the obstacles together with their inflated mask, built elsewhere.
 
         Parameters
@@ -202,9 +207,8 @@ class Planner:
     def warm_up(self) -> None:
         """Compile the search kernels and build the grid, so the first real plan is fast."""
         inflated = self._primary()
-        flat = inflated.blocked.reshape(-1)
-        first = int(np.argmin(flat))  # the first free node, without a copy of the grid
-        if flat[first]:
+        first = first_free_node(inflated.blocked)  # without a copy of the grid
+        if first is None:
             return
         node = inflated.grid.unravel(first)
         for algorithm in ALGORITHMS:
@@ -280,9 +284,10 @@ class Planner:
         name = config.algorithm if algorithm is None else algorithm
         start_point = _point_or_nan(start)
         goal_point = _point_or_nan(goal)
-        base = dict(algorithm=str(name), start=start_point, goal=goal_point,
-                    resolution=config.resolution, safety_margin=config.safety_margin,
-                    adaptive_threshold=config.adaptive_threshold)
+        base: Dict[str, Any] = dict(algorithm=str(name), start=start_point, goal=goal_point,
+                                    resolution=config.resolution,
+                                    safety_margin=config.safety_margin,
+                                    adaptive_threshold=config.adaptive_threshold)
         legs: List[LegResult] = []
         try:
             return self._plan(start, goal, via, name, base, budget, legs)
@@ -385,7 +390,7 @@ class Planner:
                 text = str(error).replace('goal', f'via-point {number} (end of leg {number - 1})',
                                           1)
                 failure = type(error)(text)
-                failure.leg = number - 1  # type: ignore[attr-defined]
+                failure.leg = number - 1  # type: ignore[union-attr]
                 raise failure from None
         return np.asarray(nodes)
 
@@ -406,7 +411,7 @@ class Planner:
                 raise
             expanded += found.expanded_nodes
             path = grid.index_to_world(found.path_indices)
-            legs.append(LegResult(number, path_length_m=polyline_length(path),
+            legs.append(LegResult(index=number, path_length_m=polyline_length(path),
                                   expanded_nodes=found.expanded_nodes, cost=found.cost_m))
             paths.append(path)
         return paths, expanded
@@ -529,7 +534,7 @@ def certify_plan(result: PlanResult, obstacles: ObstacleSet, safety_margin: floa
     """
     curve = result.curve
     if curve is None or obstacles.is_empty():
-        return ClearanceVerdict(True, None)
+        return ClearanceVerdict(clear=True, blocked_at=None)
     arc = 0.0
     if position is not None and result.trajectory is not None:
         samples = result.trajectory.positions
@@ -553,9 +558,10 @@ def certify_plan(result: PlanResult, obstacles: ObstacleSet, safety_margin: floa
         if cert.violated.any():
             piece = int(np.flatnonzero(cert.violated)[0])
             where = cert.piece_worst[piece] if cert.piece_worst is not None else None
-            return ClearanceVerdict(False, None if where is None else np.asarray(where),
-                                    max(float(starts[batch[piece]]) - arc, 0.0))
-    return ClearanceVerdict(True, None)
+            return ClearanceVerdict(
+                clear=False, blocked_at=None if where is None else np.asarray(where),
+                blocked_ahead_m=max(float(starts[batch[piece]]) - arc, 0.0))
+    return ClearanceVerdict(clear=True, blocked_at=None)
 
 
 def densify(points: np.ndarray, spacing: float) -> np.ndarray:

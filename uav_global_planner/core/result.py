@@ -1,6 +1,7 @@
 """Result types of the planner: frozen dataclasses with numpy fields in metres and seconds."""
 
 from dataclasses import dataclass, field
+from enum import StrEnum
 from typing import Any, Optional, Tuple
 
 import numpy as np
@@ -10,7 +11,7 @@ from uav_global_planner.core.status import PlanStatus
 _EMPTY_PATH = np.empty((0, 3))
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, kw_only=True)
 class Trajectory:
     """Time-parameterised smoothed path.
 
@@ -33,7 +34,16 @@ class Trajectory:
         return float(self.times[-1]) if len(self.times) else 0.0
 
 
-@dataclass(frozen=True)
+class RepairMethod(StrEnum):
+    """How a stretch of the smoothed curve was repaired to keep the safety margin."""
+
+    #: More spline knots, taken on the shortcut polyline.
+    KNOTS = 'knots'
+    #: The shortcut polyline itself, straight, with stops at its ends.
+    POLYLINE = 'polyline'
+
+
+@dataclass(frozen=True, kw_only=True)
 class RepairedStretch:
     """A stretch of the smoothed curve that had to be repaired to keep the safety margin.
 
@@ -41,19 +51,19 @@ class RepairedStretch:
     ----------
     start_m, end_m : float
         Arc-length interval of the repaired stretch on the final curve [m].
-    method : str
-        How it was repaired (for example ``'knots'`` or ``'polyline'``).
+    method : RepairMethod
+        How it was repaired.
     clearance_before_m : float
         Smallest clearance of the unrepaired curve on that stretch [m].
     """
 
     start_m: float
     end_m: float
-    method: str
+    method: RepairMethod
     clearance_before_m: float
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class LegResult:
     """One leg of a plan through via-points: from one via-point (or the start) to the next.
 
@@ -82,7 +92,7 @@ class LegResult:
     cost: float = float('nan')
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, kw_only=True)
 class PlanResult:
     """Everything one planning request produced; ``status`` says whether it succeeded.
 
@@ -129,7 +139,7 @@ class PlanResult:
     failed_leg : int
         The leg that failed (-1 when none, or when the failure is not a leg's).
     curve : PathCurve or None
-        The certified continuous curve (:class:`~uav_global_planner.core.smoothing.PathCurve`),
+        The certified continuous curve (:class:`~uav_global_planner.core.curve.PathCurve`),
         for later clearance checks against new obstacles; None on failure.
     total_time_s : float
         Wall-clock time of the whole request [s].

@@ -23,8 +23,14 @@ Format (every key below is required except ``description``, ``frame_id`` and ``o
         - {type: box, min: [x, y, z], max: [x, y, z]}
     cost: {climb_weight: 1.0, descent_weight: 1.0}   # optional, the energy-aware step cost
     vehicle: {mass: 1.5, hover_power: 180.0}         # optional [kg], [W], see core/energy.py
+    planner: {smoothing: chord, max_speed_horizontal: 2.0}   # optional, any key listed below
 
-``max_voxels`` (an integer) raises or lowers the grid's node cap. A ``points_file`` path is
+``max_voxels`` (an integer) raises or lowers the grid's node cap. Which settings a scene may
+give, and where, is the ``scene_key`` of each entry of the settings table
+(:data:`uav_global_planner.core.settings.PLANNER_SETTINGS`): the keys above, and under
+``planner:`` search_weight, max_expansions, max_planning_time, shortcut, smoothing,
+sample_spacing, index_step and the four speed and acceleration limits. Each is checked by the
+table, so a scene accepts exactly what the node and ``uav-plan`` accept. A ``points_file`` path is
 resolved against the scene file's folder; its formats and margins are those of
 :mod:`uav_global_planner.core.mapfiles`. A map's margin (OctoMap cells, downsampling: every
 occupied location lies within it of a point) is added to the safety margin, so the planner keeps
@@ -36,25 +42,26 @@ for example ``obstacles[2].radius: must be a number > 0 m``.
 """
 
 from dataclasses import dataclass, field, replace
+from importlib import resources
 import math
 from pathlib import Path
-from typing import Any, List, Mapping, Optional, Tuple, Union
+from typing import Any, Dict, List, Mapping, Optional, Set, Tuple, Union
 
 import numpy as np
 import yaml
 
 from uav_global_planner.core.airspace import Airspace, parse_geofence
-from uav_global_planner.core.config import MAX_COST_WEIGHT, PlannerConfig, validate_config
-from uav_global_planner.core.energy import parse_vehicle, VehicleModel
+from uav_global_planner.core.config import PlannerConfig, validate_config
+from uav_global_planner.core.energy import VehicleModel
 from uav_global_planner.core.errors import InvalidInputError
 from uav_global_planner.core.geodesy import GeodeticOrigin
 from uav_global_planner.core.mapfiles import load_map_points
 from uav_global_planner.core.obstacles import Box, Obstacle, ObstacleSet, PointSet, Sphere
+from uav_global_planner.core.settings import planner_settings, Setting
 
-_TOP_KEYS = {'description', 'frame_id', 'bounds', 'resolution', 'safety_margin',
-             'adaptive_threshold', 'start', 'goal', 'obstacles', 'max_voxels',
-             'geodetic_origin', 'via', 'geofence', 'cost', 'vehicle'}
-_REQUIRED_KEYS = ('bounds', 'resolution', 'safety_margin', 'adaptive_threshold', 'start', 'goal')
+# Top-level keys that are scene data, not settings; the settings' keys come from the table.
+_DATA_KEYS = ('description', 'frame_id', 'start', 'goal', 'obstacles', 'geodetic_origin', 'via',
+              'geofence')
 _OBSTACLE_KEYS = {'sphere': ('center', 'radius'), 'box': ('min', 'max'), 'points': ('points',),
                   'points_file': ('path',)}
 _OPTIONAL_OBSTACLE_KEYS = {'points_file': ('downsample',)}
@@ -62,8 +69,8 @@ _OPTIONAL_OBSTACLE_KEYS = {'points_file': ('downsample',)}
 # libyaml's parser where PyYAML was built with it: several times faster on inline point lists.
 _YAML_LOADER = getattr(yaml, 'CSafeLoader', yaml.SafeLoader)
 
-#: Folder of the scenes shipped with the package, in a source checkout.
-_SOURCE_SCENES = Path(__file__).resolve().parents[2] / 'config' / 'scenes'
+#: The shipped configuration (planner.yaml, scenes/) in a source checkout, beside the package.
+_SOURCE_CONFIG = Path(__file__).resolve().parents[2] / 'config'
 
 
 @dataclass(frozen=True, eq=False)
@@ -195,24 +202,50 @@ def _points_file(entry: dict, file: Any, path: str,
     return loaded.obstacle(), loaded.margin_m
 
 
-def _cost_weights(value: Any) -> dict:
-    """The ``cost`` key's climb and descent weights, as PlannerConfig fields."""
-    if value is None:
-        return {}
-    keys = _mapping(value, 'cost', {'climb_weight', 'descent_weight'})
-    weights = {}
-    for key in sorted(keys):
-        weight = _number(keys[key], f'cost.{key}')
-        if not 0.0 <= weight <= MAX_COST_WEIGHT:
-            raise _fail(f'cost.{key}', f'must be in [0, {MAX_COST_WEIGHT:g}], got {weight}')
-        weights[key] = weight
-    return weights
+def _scene_settings() -> List[Setting]:
+    """The settings a scene file may give, in table order."""
+    return [entry for entry in planner_settings() if entry.scene_key and entry.field]
 
 
-def _max_voxels(value: Any) -> int:
-    if isinstance(value, bool) or not isinstance(value, int):
-        raise _fail('max_voxels', f'must be an integer node count, got {value!r}')
-    return value
+def _setting_values(top: dict, overridden: Set[str]) -> dict:
+    """The scene's settings as PlannerConfig fields, each checked by its table entry.
+
+    Sections (``bounds``, ``cost``, ``vehicle``, ``planner``) must be mappings of known keys;
+    settings in ``overridden`` are replaced by command-line values, so they are not checked.
+    """
+    entries = _scene_settings()
+    sections: Dict[str, Set[str]] = {}
+    for entry in entries:
+        head, _, tail = str(entry.scene_key).partition('.')
+        if tail:
+            sections.setdefault(head, set()).add(tail)
+    required = {str(e.scene_key).partition('.')[0] for e in entries if e.scene_required}
+    for head, keys in sections.items():
+        # An optional section left empty (``cost:``) gives nothing; a required one must be there.
+        if top.get(head) is not None or (head in top and head in required):
+            _mapping(top[head], head, keys)
+    values = {}
+    for entry in entries:
+        path = str(entry.scene_key)
+        head, _, tail = path.partition('.')
+        holder = top.get(head) if tail else top
+        key = tail or head
+        if not isinstance(holder, dict) or key not in holder:
+            if entry.scene_required:
+                _require(holder if isinstance(holder, dict) else {}, key, head if tail else '')
+            continue
+        if entry.field not in overridden:
+            values[entry.field] = entry.check_key(holder[key], path)
+    return values
+
+
+def _allowed_top_keys() -> Set[str]:
+    return {*_DATA_KEYS, *(str(e.scene_key).partition('.')[0] for e in _scene_settings())}
+
+
+def _required_top_keys() -> List[str]:
+    keys = [str(e.scene_key).partition('.')[0] for e in _scene_settings() if e.scene_required]
+    return list(dict.fromkeys(keys + ['start', 'goal']))
 
 
 def parse_scene(data: Any, name: str = 'scene', base: PlannerConfig = PlannerConfig(),
@@ -241,12 +274,9 @@ def parse_scene(data: Any, name: str = 'scene', base: PlannerConfig = PlannerCon
     """
     if data is None:
         raise _fail(name, 'the scene file is empty')
-    top = _mapping(data, name, _TOP_KEYS)
-    for key in _REQUIRED_KEYS:
+    top = _mapping(data, name, _allowed_top_keys())
+    for key in _required_top_keys():
         _require(top, key, '')
-    bounds = _mapping(top['bounds'], 'bounds', {'min', 'max'})
-    lo = _vector(_require(bounds, 'min', 'bounds'), 'bounds.min')
-    hi = _vector(_require(bounds, 'max', 'bounds'), 'bounds.max')
     frame_id = top.get('frame_id', 'map')
     if not isinstance(frame_id, str) or not frame_id:
         raise _fail('frame_id', f'must be a non-empty string, got {frame_id!r}')
@@ -258,15 +288,9 @@ def parse_scene(data: Any, name: str = 'scene', base: PlannerConfig = PlannerCon
         entries = []
     if not isinstance(entries, list):
         raise _fail('obstacles', f'must be a list, got {type(entries).__name__}')
-    config = replace(base, bounds_min=tuple(lo), bounds_max=tuple(hi),
-                     resolution=_number(top['resolution'], 'resolution'),
-                     safety_margin=_number(top['safety_margin'], 'safety_margin'),
-                     adaptive_threshold=_number(top['adaptive_threshold'],
-                                                'adaptive_threshold'))
-    if 'max_voxels' in top:
-        config = replace(config, max_voxels=_max_voxels(top['max_voxels']))
-    config = replace(config, **_cost_weights(top.get('cost')))
-    config = replace(config, **dict(overrides or {}))
+    overrides = dict(overrides or {})
+    config = replace(base, **_setting_values(top, set(overrides)))
+    config = replace(config, **overrides)
     # Settings first: a wrong resolution is reported before any map file is read.
     config = validate_config(config)
     start, goal = _vector(top['start'], 'start'), _vector(top['goal'], 'goal')
@@ -280,11 +304,7 @@ def parse_scene(data: Any, name: str = 'scene', base: PlannerConfig = PlannerCon
     if margin > 0.0:
         config = validate_config(replace(config, safety_margin=config.safety_margin + margin))
     airspace = parse_geofence(top.get('geofence'))
-    vehicle = parse_vehicle(top.get('vehicle'))
-    if top.get('vehicle') is not None:
-        # The energy estimate of every plan uses the scene's vehicle.
-        config = validate_config(replace(config, vehicle_mass=vehicle.mass,
-                                         hover_power=vehicle.hover_power))
+    vehicle = VehicleModel(config.vehicle_mass, config.hover_power)
     origin = None
     if top.get('geodetic_origin') is not None:
         keys = _mapping(top['geodetic_origin'], 'geodetic_origin', {'lat', 'lon', 'alt_amsl'})
@@ -323,16 +343,24 @@ def load_scene(path: Union[str, Path], base: PlannerConfig = PlannerConfig(),
                        overrides=overrides)
 
 
-def shipped_scene_dirs() -> List[Path]:
-    """Folders that may hold the shipped scenes: the source tree, then the ament share folder."""
-    folders = [_SOURCE_SCENES]
-    try:
-        from ament_index_python.packages import get_package_share_directory
-        folders.append(Path(get_package_share_directory('uav_global_planner')) / 'config'
-                       / 'scenes')
-    except Exception:  # noqa: BLE001 - no ament index (plain venv): the source tree is enough
-        pass
+def shipped_config_dirs() -> List[Path]:
+    """Folders that may hold the shipped configuration (``planner.yaml``, ``scenes/``).
+
+    The package data of an installed package (``pip install``, ``colcon build``: setup.py ships
+    ``config/`` as ``uav_global_planner/config``), found with :mod:`importlib.resources`, then
+    the ``config`` folder of a source checkout. The ament share copy is not needed for either.
+    """
+    folders = []
+    data = resources.files('uav_global_planner') / 'config'
+    if isinstance(data, Path) and data.is_dir():
+        folders.append(data)
+    folders.append(_SOURCE_CONFIG)
     return folders
+
+
+def shipped_scene_dirs() -> List[Path]:
+    """Folders that may hold the shipped scenes, in the order of :func:`shipped_config_dirs`."""
+    return [folder / 'scenes' for folder in shipped_config_dirs()]
 
 
 def find_scene(name_or_path: Union[str, Path]) -> Path:

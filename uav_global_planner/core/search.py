@@ -81,6 +81,9 @@ size. The open list is an indexed binary heap with decrease-key whose keys are o
 (f, h, node number), which makes the result independent of anything but the inputs. The kernel
 runs at most a given number of expansions per call and can be resumed, so the time budget is
 checked in Python between chunks (numba code cannot read the clock).
+
+One module, though long (about 900 lines): the compiled kernel, its heap, the heuristics and
+the workspaces that hold its arrays for both grid layouts are compiled and tuned together.
 """
 
 from dataclasses import dataclass
@@ -88,7 +91,7 @@ import math
 import mmap
 import threading
 import time
-from typing import Callable, Dict, Optional
+from typing import Callable, Dict, List, Optional, Tuple, Union
 
 import numpy as np
 
@@ -96,6 +99,8 @@ from uav_global_planner.core.errors import (GoalOccupiedError, InvalidInputError
                                             NoValidPathError, PlanningError,
                                             PlanningTimeoutError, StartOccupiedError)
 from uav_global_planner.core.jit import njit
+from uav_global_planner.core.settings import check_setting
+from uav_global_planner.core.sparse_grid import BRICK, BRICK_BITS, BRICK_NODES, FULL, SparseMask
 
 _H_ZERO = 0
 _H_EUCLIDEAN = 1
@@ -115,6 +120,15 @@ DEFAULT_WEIGHT = 1.05
 _FOUND = 0
 _EXHAUSTED = 1
 _PAUSED = 2
+_GROW = 3
+
+# Record bricks and heap entries a search on a block-sparse grid starts with; both double when
+# a search needs more.
+_FIRST_BRICKS = 1024
+_FIRST_HEAP = 1 << 16
+_BRICK_MASK = BRICK - 1
+# Smallest page of the operating system [bytes].
+_PAGE_BYTES = 4096
 
 # Slots of the kernel's int64 state array, kept between resumed calls.
 _S_GEN = 0        # current generation stamp
@@ -128,7 +142,8 @@ _S_NZ = 7
 _S_GI = 8         # goal index (i, j, k)
 _S_GJ = 9
 _S_GK = 10
-_STATE_SIZE = 11
+_S_USED = 11     # brick slots of records in use (block-sparse grids)
+_STATE_SIZE = 12
 
 # Expansions per kernel call when a time budget must be checked between calls: about 4 to 8 ms
 # of work, so the budget is overshot by at most that much, while the call overhead (~10 us)
@@ -158,6 +173,14 @@ _SQRT3 = math.sqrt(3.0)
 # Below this sum of (weight - 1) over climbing and descending, up-down pairs of steps can cost
 # less than the level distance they cover (module notes): -2 (sqrt(3) - sqrt(2)).
 _SAWTOOTH_PAYS = -2.0 * (_SQRT3 - _SQRT2)
+
+# Stand-ins for the arrays of the layout a kernel call does not use: the dense mask, and the
+# block-sparse mask (brick table, pool), brick counts and record slots.
+_NO_MASK = np.zeros(0, dtype=np.bool_)
+_NO_TABLE = np.zeros(0, dtype=np.int32)
+_NO_POOL = np.zeros((0, BRICK_NODES), dtype=np.bool_)
+_NO_BRICKS = np.zeros(3, dtype=np.int64)
+_NO_SLOTS = np.zeros(0, dtype=np.int32)
 
 # Slots of the kernel's float64 parameter array.
 _P_RESOLUTION = 0    # delta [m]
@@ -274,27 +297,39 @@ def _precedes(f_a, h_a, node_a, f_b, h_b, node_b):
 
 
 @njit
-def _sift_up(heap_node, heap_key, node_int, pos, node, f, h):
-    """Place ``node`` with key (f, h) at heap slot ``pos`` or above it."""
+def _sift_up(heap_node, heap_rec, heap_key, node_int, pos, node, rec, f, h):
+    """Place ``node`` (record number ``rec``) with key (f, h) at heap slot ``pos`` or above it.
+
+    Each heap entry is a node number, its key and, on the block-sparse layout, its record
+    number (``heap_rec``); on the dense layout ``heap_rec`` is None, a record number being the
+    node number (numba compiles each layout's version without the test).
+    """
     while pos > 0:
         up = (pos - 1) >> 1
         above = heap_node[up]
         if not _precedes(f, h, node, heap_key[2 * up], heap_key[2 * up + 1], above):
             break
         heap_node[pos] = above
+        rec_above = np.int64(above)
+        if heap_rec is not None:
+            rec_above = np.int64(heap_rec[up])
+            heap_rec[pos] = rec_above
         heap_key[2 * pos] = heap_key[2 * up]
         heap_key[2 * pos + 1] = heap_key[2 * up + 1]
-        node_int[4 * above + _HEAP_SLOT] = pos
+        node_int[4 * rec_above + _HEAP_SLOT] = pos
         pos = up
     heap_node[pos] = node
+    if heap_rec is not None:
+        heap_rec[pos] = rec
     heap_key[2 * pos] = f
     heap_key[2 * pos + 1] = h
-    node_int[4 * node + _HEAP_SLOT] = pos
+    node_int[4 * np.int64(rec) + _HEAP_SLOT] = pos
 
 
 @njit
-def _pop_fill(heap_node, heap_key, node_int, size, node, f, h):
-    """Refill the root hole of a heap of ``size`` entries with ``node`` of key (f, h).
+def _pop_fill(heap_node, heap_rec, heap_key, node_int, size, node, rec, f, h):
+    """Refill the root hole of a heap of ``size`` entries with ``node`` (record ``rec``) of key
+    (f, h).
 
     Floyd's variant: the hole first walks down to a leaf along the preferred children (one
     comparison per level instead of two), then the element, which came from the bottom and so
@@ -312,22 +347,36 @@ def _pop_fill(heap_node, heap_key, node_int, size, node, f, h):
             child = right
         below = heap_node[child]
         heap_node[pos] = below
+        rec_below = np.int64(below)
+        if heap_rec is not None:
+            rec_below = np.int64(heap_rec[child])
+            heap_rec[pos] = rec_below
         heap_key[2 * pos] = heap_key[2 * child]
         heap_key[2 * pos + 1] = heap_key[2 * child + 1]
-        node_int[4 * below + _HEAP_SLOT] = pos
+        node_int[4 * rec_below + _HEAP_SLOT] = pos
         pos = child
-    _sift_up(heap_node, heap_key, node_int, pos, node, f, h)
+    _sift_up(heap_node, heap_rec, heap_key, node_int, pos, node, rec, f, h)
 
 
 @njit
-def _expand(blocked, node_g, node_int, parent, heap_node, heap_key, directions, delta,
-            step_cost, state, params, max_pops):
+def _expand(blocked, mask_table, mask_pool, bricks, slots, node_g, node_int, parent, heap_node,
+            heap_rec, heap_key, directions, delta, step_cost, state, params, max_pops):
     """Run at most ``max_pops`` expansions of the search described by ``state``.
 
-    Returns ``_FOUND`` when the goal was closed, ``_EXHAUSTED`` when the open list is empty and
-    ``_PAUSED`` when ``max_pops`` ran out; ``state`` is updated so the call can be resumed.
-    Node records are only meaningful when their stamp equals the current generation; a heap
-    position of -1 marks a closed node.
+    Two record layouts share this loop; numba compiles one version of it for each, the tests
+    of ``heap_rec is not None`` resolved at compile time. Dense: ``blocked`` is the flat mask,
+    a node's record number is its node number, ``heap_rec`` is None and the brick arguments
+    are unused. Block-sparse (``blocked`` empty): the mask is ``mask_table`` and ``mask_pool``
+    and the records live in bricks of 8 x 8 x 8 nodes; a brick of records gets a slot
+    (``slots[brick]``, in the order first reached) when the search first reaches one of its
+    nodes.
+
+    Returns ``_FOUND`` when the goal was closed, ``_EXHAUSTED`` when the open list is empty,
+    ``_PAUSED`` when ``max_pops`` ran out and, block-sparse only, ``_GROW``, without expanding,
+    when the record pool might not hold the bricks of one more expansion (8) or the heap its 26
+    neighbours (the caller grows them and resumes); ``state`` is updated so the call can be
+    resumed. Node records are only meaningful when their stamp equals the current generation;
+    a heap position of -1 marks a closed node.
     """
     generation = np.int32(state[_S_GEN])
     size = state[_S_SIZE]
@@ -339,12 +388,17 @@ def _expand(blocked, node_g, node_int, parent, heap_node, heap_key, directions, 
     gi = state[_S_GI]
     gj = state[_S_GJ]
     gk = state[_S_GK]
+    used = state[_S_USED]
     resolution = params[_P_RESOLUTION]
     eta = params[_P_ETA]
     weight = params[_P_WEIGHT]
     omega_up = params[_P_OMEGA_UP]
     omega_down = params[_P_OMEGA_DOWN]
     kappa = params[_P_KAPPA]
+    capacity = parent.shape[0] // BRICK_NODES
+    heap_capacity = heap_node.shape[0]
+    by = bricks[1]
+    bz = bricks[2]
     nyz = ny * nz
     pops = 0
     status = _PAUSED
@@ -355,11 +409,21 @@ def _expand(blocked, node_g, node_int, parent, heap_node, heap_key, directions, 
         if pops >= max_pops:
             break
         node = np.int64(heap_node[0])
+        rec_node = node
+        if heap_rec is not None:
+            if used + 8 > capacity or size + 26 > heap_capacity:
+                status = _GROW
+                break
+            rec_node = np.int64(heap_rec[0])
         size -= 1
         if size > 0:
-            _pop_fill(heap_node, heap_key, node_int, size, heap_node[size], heap_key[2 * size],
-                      heap_key[2 * size + 1])
-        node_int[4 * node + _HEAP_SLOT] = -1
+            last = heap_node[size]
+            rec_last = np.int64(last)
+            if heap_rec is not None:
+                rec_last = np.int64(heap_rec[size])
+            _pop_fill(heap_node, heap_rec, heap_key, node_int, size, last, rec_last,
+                      heap_key[2 * size], heap_key[2 * size + 1])
+        node_int[4 * rec_node + _HEAP_SLOT] = -1
         pops += 1
         if node == goal:
             status = _FOUND
@@ -368,7 +432,7 @@ def _expand(blocked, node_g, node_int, parent, heap_node, heap_key, directions, 
         rest = node - i * nyz
         j = rest // nz
         k = rest - j * nz
-        g_node = node_g[2 * node]
+        g_node = node_g[2 * rec_node]
         for d in range(26):
             ni = i + directions[d, 0]
             nj = j + directions[d, 1]
@@ -376,62 +440,106 @@ def _expand(blocked, node_g, node_int, parent, heap_node, heap_key, directions, 
             if ni < 0 or ni >= nx or nj < 0 or nj >= ny or nk < 0 or nk >= nz:
                 continue
             neighbour = node + delta[d]
-            if blocked[neighbour]:
+            rec = neighbour
+            if heap_rec is not None:
+                brick = ((ni >> BRICK_BITS) * by + (nj >> BRICK_BITS)) * bz + (nk >> BRICK_BITS)
+                local = (((ni & _BRICK_MASK) * BRICK) + (nj & _BRICK_MASK)) * BRICK + (
+                    nk & _BRICK_MASK)
+                kind = mask_table[brick]
+                if kind == FULL:
+                    continue
+                if kind >= 0 and mask_pool[kind, local]:
+                    continue
+                slot = np.int64(slots[brick])
+                if slot < 0:
+                    slot = used
+                    used += 1
+                    slots[brick] = slot
+                rec = slot * BRICK_NODES + local
+            elif blocked[neighbour]:
                 continue
             g_new = g_node + step_cost[d]
-            if node_int[4 * neighbour + _STAMP_SLOT] != generation:
+            if node_int[4 * rec + _STAMP_SLOT] != generation:
                 # First visit in this query: the record is stale, overwrite it.
-                node_int[4 * neighbour + _STAMP_SLOT] = generation
-                node_g[2 * neighbour] = g_new
-                parent[neighbour] = d
+                node_int[4 * rec + _STAMP_SLOT] = generation
+                node_g[2 * rec] = g_new
+                parent[rec] = d
                 h = _heuristic(code, abs(ni - gi), abs(nj - gj), gk - nk, resolution, eta,
                                weight, omega_up, omega_down, kappa)
-                _sift_up(heap_node, heap_key, node_int, size, neighbour, g_new + h, h)
+                _sift_up(heap_node, heap_rec, heap_key, node_int, size, neighbour, rec,
+                         g_new + h, h)
                 size += 1
             else:
-                pos = np.int64(node_int[4 * neighbour + _HEAP_SLOT])
-                if pos < 0 or g_new >= node_g[2 * neighbour]:
+                pos = np.int64(node_int[4 * rec + _HEAP_SLOT])
+                if pos < 0 or g_new >= node_g[2 * rec]:
                     continue
                 # Decrease-key: h is kept in the heap, so it is not recomputed.
-                node_g[2 * neighbour] = g_new
-                parent[neighbour] = d
+                node_g[2 * rec] = g_new
+                parent[rec] = d
                 h = heap_key[2 * pos + 1]
-                _sift_up(heap_node, heap_key, node_int, pos, neighbour, g_new + h, h)
+                _sift_up(heap_node, heap_rec, heap_key, node_int, pos, neighbour, rec,
+                         g_new + h, h)
     state[_S_SIZE] = size
     state[_S_EXPANDED] += pops
+    state[_S_USED] = used
     return status
 
 
 @njit
-def _trace(goal, parent, delta):
+def _record(node, ny, nz, bricks, slots):
+    """Record number of a node: the node number on the dense layout (``slots`` empty), else its
+    place in its brick's slot, which it must have."""
+    if slots.shape[0] == 0:
+        return np.int64(node)
+    nyz = ny * nz
+    i = node // nyz
+    rest = node - i * nyz
+    j = rest // nz
+    k = rest - j * nz
+    brick = ((i >> BRICK_BITS) * bricks[1] + (j >> BRICK_BITS)) * bricks[2] + (k >> BRICK_BITS)
+    local = (((i & _BRICK_MASK) * BRICK) + (j & _BRICK_MASK)) * BRICK + (k & _BRICK_MASK)
+    return np.int64(slots[brick]) * BRICK_NODES + local
+
+
+@njit
+def _trace(goal, parent, delta, ny, nz, bricks, slots):
     """Flat node numbers from the start to ``goal``, following the parent directions."""
     length = 1
     node = goal
-    while parent[node] != _NO_PARENT:
-        node -= delta[parent[node]]
+    while parent[_record(node, ny, nz, bricks, slots)] != _NO_PARENT:
+        node -= delta[parent[_record(node, ny, nz, bricks, slots)]]
         length += 1
     path = np.empty(length, dtype=np.int64)
     node = goal
     for slot in range(length - 1, -1, -1):
         path[slot] = node
         if slot > 0:
-            node -= delta[parent[node]]
+            node -= delta[parent[_record(node, ny, nz, bricks, slots)]]
     return path
 
 
 class SearchWorkspace:
     """Reusable search memory for one occupancy grid.
 
-    The per-node arrays (17 bytes per node: a 16-byte record of cost, stamp and heap position, and
-    a parent byte) and the heap (20 bytes per entry, committed by the operating system only as
-    far as the heap grows) are allocated once here and reused by every :meth:`search`; expect
-    the per-node arrays to be fully resident after a few queries (about 105 MB at 6.1 million
-    nodes). Searches on one workspace are serialised by a lock; use one
-    workspace per thread to search in parallel.
+    On a dense mask (a numpy bool array) the per-node arrays (17 bytes per node: a 16-byte
+    record of cost, stamp and heap position, and a parent byte) and the heap (20 bytes per
+    entry, committed by the operating system only as far as the heap grows) are allocated once
+    here and reused by every :meth:`search`; expect the per-node arrays to be fully resident
+    after a few queries (about 105 MB at 6.1 million nodes).
+
+    On a block-sparse mask (:class:`~uav_global_planner.core.sparse_grid.SparseMask`) the same
+    17-byte records live in bricks of 8 x 8 x 8 nodes, given a slot of a pool when a search
+    first reaches the brick; each query starts with an empty brick table (4 bytes a brick) and
+    reuses the pool, which, like the heap (24 bytes an entry there), doubles when a search needs
+    more. Memory then follows what the searches touch (about 8.7 kB per brick reached), not
+    the grid's volume, and a first query commits only the pages it writes.
+
+    Searches on one workspace are serialised by a lock; use one workspace per thread to search
+    in parallel.
 
     Parameters
     ----------
-    blocked : numpy.ndarray of bool, shape (Nx, Ny, Nz)
+    blocked : numpy.ndarray of bool, shape (Nx, Ny, Nz), or SparseMask
         True where a node is unsafe. The workspace keeps a reference (a copy only if the array is
         not C-contiguous), so in-place edits of a C-contiguous array are seen by later searches.
 
@@ -443,39 +551,115 @@ class SearchWorkspace:
     Raises
     ------
     InvalidInputError
-        If ``blocked`` is not a 3D bool array with at least one node per axis and fewer than
-        2**31 nodes.
+        If ``blocked`` is not a 3D bool array (or a SparseMask) with at least one node per axis
+        and fewer than 2**31 nodes.
     """
 
-    def __init__(self, blocked: np.ndarray) -> None:
+    def __init__(self, blocked: Union[np.ndarray, SparseMask]) -> None:
         self._blocked = _checked_grid(blocked)
-        self._flat_blocked = self._blocked.reshape(-1)
         self.shape = tuple(int(n) for n in self._blocked.shape)
-        size = self._blocked.size
         nx, ny, nz = self.shape
         strides = np.array([ny * nz, nz, 1], dtype=np.int64)
         self._delta = _DIRECTIONS @ strides
-        # Large np.zeros / np.empty arrays are fresh zero pages: memory is only committed where
-        # a search touches it. Zeroed records carry stamp 0, which no query uses.
-        self._node_g = _lazy_zeros(2 * size, np.float64)
-        self._node_int = self._node_g.view(np.int32)
-        self._parent = _lazy_zeros(size, np.int8)
-        # The heap holds each node at most once, so `size` entries always suffice; an entry is
-        # a node number and its key (f, h).
-        self._heap_node = _lazy_zeros(size, np.int32)
-        self._heap_key = _lazy_zeros(2 * size, np.float64)
         self._state = np.zeros(_STATE_SIZE, dtype=np.int64)
         self._state[_S_NX:_S_NZ + 1] = self.shape
         self._params = np.zeros(_PARAMS_SIZE, dtype=np.float64)
         self._generation = 0
         self._lock = threading.Lock()
+        self._sparse = False
+        # Record number of each heap entry (block-sparse layout; None on the dense one).
+        self._heap_rec: Optional[np.ndarray] = None
+        self._use(self._blocked)
+
+    def _use(self, blocked: Union[np.ndarray, SparseMask]) -> None:
+        """Search ``blocked``, (re)allocating the records when the layout changes."""
+        sparse = isinstance(blocked, SparseMask)
+        first = not hasattr(self, '_node_g')
+        self._blocked = blocked
+        if sparse:
+            self._flat_blocked = None
+        else:
+            self._flat_blocked = blocked.reshape(-1)  # type: ignore[union-attr]
+        if not first and sparse == self._sparse:
+            return
+        self._sparse = sparse
+        size = int(np.prod(self.shape))
+        if sparse:
+            self._bricks = np.asarray(blocked.bricks, dtype=np.int64)  # type: ignore
+            self._slots = np.full(int(np.prod(self._bricks)), -1, dtype=np.int32)
+            self._node_g = np.zeros(2 * _FIRST_BRICKS * BRICK_NODES, dtype=np.float64)
+            self._parent = np.zeros(_FIRST_BRICKS * BRICK_NODES, dtype=np.int8)
+            self._heap_node = np.zeros(_FIRST_HEAP, dtype=np.int32)
+            self._heap_rec = np.zeros(_FIRST_HEAP, dtype=np.int32)
+            self._heap_key = np.zeros(2 * _FIRST_HEAP, dtype=np.float64)
+            # Commit the first pool now (about 10 MB), so that a first query does not pay the
+            # page faults of its records.
+            for array in (self._node_g, self._parent, self._heap_node, self._heap_rec,
+                          self._heap_key):
+                array.view(np.uint8)[::_PAGE_BYTES] = 0
+        else:
+            # Large np.zeros / np.empty arrays are fresh zero pages: memory is only committed
+            # where a search touches it. Zeroed records carry stamp 0, which no query uses.
+            self._node_g = _lazy_zeros(2 * size, np.float64)
+            self._parent = _lazy_zeros(size, np.int8)
+            # The heap holds each node at most once, so `size` entries always suffice; an entry
+            # is a node number and its key (f, h).
+            self._heap_node = _lazy_zeros(size, np.int32)
+            self._heap_key = _lazy_zeros(2 * size, np.float64)
+            self._heap_rec = None
+            self._bricks = _NO_BRICKS
+            self._slots = _NO_SLOTS
+        self._node_int = self._node_g.view(np.int32)
 
     @property
-    def blocked(self) -> np.ndarray:
+    def blocked(self) -> Union[np.ndarray, SparseMask]:
         """The occupancy grid searched, shape (Nx, Ny, Nz)."""
         return self._blocked
 
-    def set_blocked(self, blocked: np.ndarray) -> None:
+    @property
+    def record_bytes(self) -> int:
+        """Memory of the search records, heap and brick table as allocated [bytes]."""
+        arrays: List[np.ndarray] = [self._node_g, self._parent, self._heap_node, self._heap_key]
+        if self._heap_rec is not None:
+            arrays += [self._heap_rec, self._slots]
+        return int(sum(a.nbytes for a in arrays))
+
+    def _kernel_masks(self) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The mask as :func:`_expand` takes it: (flat dense mask, brick table, brick pool),
+        the arrays of the other layout empty."""
+        if self._flat_blocked is not None:
+            return self._flat_blocked, _NO_TABLE, _NO_POOL
+        mask = self._blocked
+        return _NO_MASK, mask.table, mask.pool  # type: ignore[union-attr]
+
+    def _is_blocked(self, node: int) -> bool:
+        if self._sparse:
+            return self._blocked[tuple(self._unravel(node))]
+        return bool(self._flat_blocked[node])  # type: ignore[index]
+
+    def _grow(self) -> None:
+        """Double the record pool and / or the heap of a block-sparse search."""
+        used = int(self._state[_S_USED])
+        if (used + 8) * BRICK_NODES > len(self._parent):
+            bricks = 2 * len(self._parent) // BRICK_NODES
+            node_g = np.zeros(2 * bricks * BRICK_NODES, dtype=np.float64)
+            node_g[:2 * used * BRICK_NODES] = self._node_g[:2 * used * BRICK_NODES]
+            parent = np.zeros(bricks * BRICK_NODES, dtype=np.int8)
+            parent[:used * BRICK_NODES] = self._parent[:used * BRICK_NODES]
+            self._node_g, self._parent = node_g, parent
+            self._node_int = node_g.view(np.int32)
+        size = int(self._state[_S_SIZE])
+        if self._heap_rec is not None and size + 26 > len(self._heap_node):
+            entries = 2 * len(self._heap_node)
+            heap_node = np.zeros(entries, dtype=np.int32)
+            heap_node[:size] = self._heap_node[:size]
+            heap_rec = np.zeros(entries, dtype=np.int32)
+            heap_rec[:size] = self._heap_rec[:size]
+            heap_key = np.zeros(2 * entries, dtype=np.float64)
+            heap_key[:2 * size] = self._heap_key[:2 * size]
+            self._heap_node, self._heap_rec, self._heap_key = heap_node, heap_rec, heap_key
+
+    def set_blocked(self, blocked: Union[np.ndarray, SparseMask]) -> None:
         """Search another occupancy grid of the same shape, keeping the allocated memory.
 
         Raises
@@ -484,12 +668,11 @@ class SearchWorkspace:
             If ``blocked`` is not a valid grid (see the class) of shape :attr:`shape`.
         """
         grid = _checked_grid(blocked)
-        if grid.shape != self.shape:
+        if tuple(grid.shape) != self.shape:
             raise InvalidInputError(
                 f'blocked must keep the workspace shape {self.shape}, got {grid.shape}')
         with self._lock:
-            self._blocked = grid
-            self._flat_blocked = grid.reshape(-1)
+            self._use(grid)
 
     def _node(self, index, name: str) -> int:
         """Flat node number of a (i, j, k) index, checked against the grid."""
@@ -558,28 +741,24 @@ class SearchWorkspace:
         start = self._node(start_index, 'start_index')
         goal = self._node(goal_index, 'goal_index')
         delta_m = _checked_float('resolution', resolution, positive=True)
-        eta = _checked_float('adaptive_threshold', adaptive_threshold, positive=False)
         budget_s = _checked_float('max_time_s', max_time_s, positive=False)
-        if (isinstance(max_expansions, bool) or not isinstance(max_expansions, (int, np.integer))
-                or max_expansions < 0):
-            raise InvalidInputError(
-                f'max_expansions must be an integer >= 0, got {max_expansions!r}')
-        budget_n = int(max_expansions)
-        w = _checked_float('weight', weight, positive=True)
-        if w < 1.0:
-            raise InvalidInputError(f'weight must be >= 1, got {w}')
-        climb = _checked_float('climb_weight', climb_weight, positive=False)
-        descent = _checked_float('descent_weight', descent_weight, positive=False)
+        # The settings are checked by their table entries (core/settings.py).
+        eta = check_setting('adaptive_threshold', adaptive_threshold)
+        budget_n = check_setting('max_expansions', max_expansions)
+        w = check_setting('search_weight', weight, 'weight')
+        climb = check_setting('climb_weight', climb_weight)
+        descent = check_setting('descent_weight', descent_weight)
 
         with self._lock:
-            if self._flat_blocked[start]:
+            if self._is_blocked(start):
                 raise StartOccupiedError(f'start node {self._unravel(start)} is blocked')
-            if self._flat_blocked[goal]:
+            if self._is_blocked(goal):
                 raise GoalOccupiedError(f'goal node {self._unravel(goal)} is blocked')
             began = time.perf_counter()
             self._begin(start, goal, code, delta_m, eta, w, climb, descent)
             step_cost = delta_m * (_STEP_LENGTH + (climb - 1.0) * _UP + (descent - 1.0) * _DOWN)
             state = self._state
+            flat, table, pool = self._kernel_masks()
             while True:
                 if budget_s > 0.0 or checkpoint is not None:
                     pops = _CHUNK
@@ -587,9 +766,13 @@ class SearchWorkspace:
                     pops = _MAX_NODES
                 if budget_n > 0:
                     pops = min(pops, budget_n - int(state[_S_EXPANDED]))
-                status = _expand(self._flat_blocked, self._node_g, self._node_int, self._parent,
-                                 self._heap_node, self._heap_key, _DIRECTIONS, self._delta,
-                                 step_cost, state, self._params, pops)
+                status = _expand(flat, table, pool, self._bricks, self._slots, self._node_g,
+                                 self._node_int, self._parent, self._heap_node, self._heap_rec,
+                                 self._heap_key, _DIRECTIONS, self._delta, step_cost, state,
+                                 self._params, pops)
+                if status == _GROW:
+                    self._grow()
+                    continue
                 expanded = int(state[_S_EXPANDED])
                 if status == _FOUND:
                     break
@@ -613,8 +796,13 @@ class SearchWorkspace:
                     raise PlanningTimeoutError(
                         f'search ran out of its time budget (max_time_s = {budget_s:g} s) after '
                         f'expanding {expanded} nodes in {elapsed:.3f} s', expanded_nodes=expanded)
-            flat_path = _trace(goal, self._parent, self._delta)
-            cost = float(self._node_g[2 * goal])
+            _, ny, nz = self.shape
+            flat_path = _trace(goal, self._parent, self._delta, ny, nz, self._bricks,
+                               self._slots)
+            record = goal
+            if self._sparse:
+                record = int(_record(goal, ny, nz, self._bricks, self._slots))
+            cost = float(self._node_g[2 * record])
             elapsed = time.perf_counter() - began
         path = np.stack(np.unravel_index(flat_path, self.shape), axis=-1).astype(np.int64)
         return SearchResult(path_indices=path, cost_m=cost, expanded_nodes=expanded,
@@ -646,10 +834,21 @@ class SearchWorkspace:
         state[_S_GOAL] = goal
         state[_S_CODE] = code
         state[_S_GI:_S_GK + 1] = (gi, gj, gk)
-        self._node_g[2 * start] = 0.0
-        self._node_int[4 * start + _STAMP_SLOT] = self._generation
-        self._node_int[4 * start + _HEAP_SLOT] = 0
-        self._parent[start] = _NO_PARENT
+        record = start
+        if self._sparse:
+            # A new brick table each query; the pool's old records carry older stamps.
+            self._slots.fill(-1)
+            _, ny, nz = self.shape
+            brick = ((si >> BRICK_BITS) * self._bricks[1] + (sj >> BRICK_BITS)) * self._bricks[2]
+            self._slots[brick + (sk >> BRICK_BITS)] = 0
+            state[_S_USED] = 1
+            record = int(_record(start, ny, nz, self._bricks, self._slots))
+        if self._heap_rec is not None:
+            self._heap_rec[0] = record
+        self._node_g[2 * record] = 0.0
+        self._node_int[4 * record + _STAMP_SLOT] = self._generation
+        self._node_int[4 * record + _HEAP_SLOT] = 0
+        self._parent[record] = _NO_PARENT
         self._heap_node[0] = start
         self._heap_key[0] = h
         self._heap_key[1] = h
@@ -676,8 +875,14 @@ def _lazy_zeros(count: int, dtype) -> np.ndarray:
     return np.frombuffer(region, dtype=dtype, count=count)
 
 
-def _checked_grid(blocked) -> np.ndarray:
-    """``blocked`` as a C-contiguous 3D bool array (copied only if not contiguous)."""
+def _checked_grid(blocked) -> Union[np.ndarray, SparseMask]:
+    """``blocked`` as a C-contiguous 3D bool array (copied only if not contiguous), or the
+    SparseMask itself."""
+    if isinstance(blocked, SparseMask):
+        if blocked.size > _MAX_NODES:
+            raise InvalidInputError(
+                f'blocked has {blocked.size} nodes; the search supports at most {_MAX_NODES}')
+        return blocked
     if not isinstance(blocked, np.ndarray) or blocked.dtype != np.bool_:
         raise InvalidInputError('blocked must be a numpy bool array')
     if blocked.ndim != 3 or min(blocked.shape) < 1:
@@ -700,8 +905,8 @@ def _checked_float(name: str, value, positive: bool) -> float:
     return number
 
 
-def search(blocked: np.ndarray, start_index, goal_index, algorithm: str, resolution: float,
-           adaptive_threshold: float, max_expansions: int = 0,
+def search(blocked: Union[np.ndarray, SparseMask], start_index, goal_index, algorithm: str,
+           resolution: float, adaptive_threshold: float, max_expansions: int = 0,
            max_time_s: float = 0.0, *, weight: float = DEFAULT_WEIGHT,
            climb_weight: float = 1.0, descent_weight: float = 1.0) -> SearchResult:
     """One-off search on a fresh :class:`SearchWorkspace`; see :meth:`SearchWorkspace.search`.

@@ -34,8 +34,8 @@ from typing import List
 
 import numpy as np
 
-from uav_global_planner.core.grid import positive_number
 from uav_global_planner.core.result import Trajectory
+from uav_global_planner.core.settings import check_setting
 from uav_global_planner.core.smoothing import SmoothedPath
 
 
@@ -75,15 +75,17 @@ def time_parameterize(smoothed: SmoothedPath, max_speed_horizontal: float,
         ``times`` strictly increasing from 0 [s]; ``positions`` the samples [m]; ``velocities``
         [m/s] zero at the start, the goal and every stop point; ``accelerations`` [m/s^2].
     """
-    vh = positive_number('max_speed_horizontal', max_speed_horizontal)
-    vz = positive_number('max_speed_vertical', max_speed_vertical)
-    ah = positive_number('max_accel_horizontal', max_accel_horizontal)
-    az = positive_number('max_accel_vertical', max_accel_vertical)
+    # The limits are checked by their table entries (core/settings.py).
+    vh = check_setting('max_speed_horizontal', max_speed_horizontal)
+    vz = check_setting('max_speed_vertical', max_speed_vertical)
+    ah = check_setting('max_accel_horizontal', max_accel_horizontal)
+    az = check_setting('max_accel_vertical', max_accel_vertical)
     positions = smoothed.positions
     count = len(positions)
     if count < 2:
         zeros = np.zeros((count, 3))
-        return Trajectory(np.zeros(count), positions.copy(), zeros, zeros.copy())
+        return Trajectory(times=np.zeros(count), positions=positions.copy(), velocities=zeros,
+                          accelerations=zeros.copy())
 
     tangent = smoothed.interval_tangent_max
     curvature = smoothed.interval_curvature_max
@@ -115,7 +117,8 @@ def time_parameterize(smoothed: SmoothedPath, max_speed_horizontal: float,
     accelerations[:-1] += leaving
     accelerations[1:] += arriving
     accelerations[1:-1] *= 0.5
-    return Trajectory(times, positions.copy(), velocities, accelerations)
+    return Trajectory(times=times, positions=positions.copy(), velocities=velocities,
+                      accelerations=accelerations)
 
 
 def _speed_profile(ds: List[float], cap: List[float], coef_a: List[list],

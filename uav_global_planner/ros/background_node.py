@@ -1,12 +1,11 @@
 """An rclpy node in a context of its own, spun on a background thread.
 
-The planner's clients in this package (the demo, the ROS benchmark) and the tests talk to
-``planner_node`` from a process that also does other work: each holds one of these, so its
-subscriptions and parameter calls are served while the main thread waits on results. A context
-of its own fixes the ROS domain per client and leaves the global context alone.
+The planner's clients (the demo and the ROS benchmark of ``uav_global_planner_tools``) and the
+tests talk to ``planner_node`` from a process that also does other work: each holds one of these,
+so its subscriptions and parameter calls are served while the main thread waits on results. A
+context of its own fixes the ROS domain per client and leaves the global context alone.
 """
 
-import os
 import threading
 from typing import Optional
 
@@ -14,16 +13,6 @@ import rclpy
 from rclpy.executors import ExternalShutdownException, ShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
-
-
-def choose_domain_id(explicit: Optional[int] = None) -> int:
-    """The ROS domain a tool of this package uses: ``explicit`` if given, else
-    ``$ROS_DOMAIN_ID``, else one derived from the process id (so two runs rarely collide)."""
-    if explicit is not None:
-        return explicit
-    if os.environ.get('ROS_DOMAIN_ID', '').isdigit():
-        return int(os.environ['ROS_DOMAIN_ID'])
-    return 1 + os.getpid() % 101
 
 
 class BackgroundNode:

@@ -8,17 +8,21 @@ use on the wire), with one numpy record per pose, in a small fraction of that ti
 ``Publisher.publish`` sends such bytes as they are.
 
 Every function produces exactly the message of its counterpart in
-:mod:`~uav_global_planner.ros.conversions` (same poses, stamps and orientations; the tests compare
-both after deserialisation), so subscribers cannot tell the difference. No ``rclpy`` here.
+:mod:`~uav_global_planner.ros.conversions`: both take the poses, headings and stamps from the
+same functions (:func:`~uav_global_planner.ros.conversions.poses.pose_array`,
+:func:`~uav_global_planner.ros.conversions.plans.pose_stamps_ns`), the tests compare both after
+deserialisation, and the node checks once at start-up that rclpy reads these bytes back as the
+same messages (:mod:`~uav_global_planner.ros.plan_writer`). No ``rclpy`` here.
 """
 
-import math
 from typing import List, Optional, Sequence, Tuple
 
 import numpy as np
 
 from uav_global_planner.core.result import PlanResult
-from uav_global_planner.ros.conversions import path_yaws, quaternion_yaw
+from uav_global_planner.ros.conversions.plans import pose_stamps_ns, require_trajectory
+from uav_global_planner.ros.conversions.poses import pose_array
+from uav_global_planner.ros.conversions.stamps import seconds_to_ns
 
 # Encapsulation header of little-endian plain CDR.
 _ENCAPSULATION = b'\x00\x01\x00\x00'
@@ -126,21 +130,6 @@ def _split_ns(stamps_ns: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
     return sec, nanosec
 
 
-def _yaw_quaternions(positions: np.ndarray,
-                     goal_orientation: Optional[Sequence[float]]) -> np.ndarray:
-    """(M, 4) orientations (x, y, z, w) as :func:`conversions.points_to_path` sets them."""
-    fallback = quaternion_yaw(goal_orientation) if goal_orientation is not None else 0.0
-    yaws = path_yaws(positions, fallback)
-    quaternions = np.zeros((len(positions), 4))
-    # math, not numpy: the very same rounding as conversions.yaw_quaternion.
-    halves = [0.5 * float(yaw) for yaw in yaws.tolist()]
-    quaternions[:, 2] = [math.sin(half) for half in halves]
-    quaternions[:, 3] = [math.cos(half) for half in halves]
-    if goal_orientation is not None and len(positions):
-        quaternions[-1] = [float(v) for v in goal_orientation]
-    return quaternions
-
-
 _POSE_FIELDS = ('x', 'y', 'z', 'qx', 'qy', 'qz', 'qw')
 
 
@@ -148,22 +137,13 @@ def serialized_path(points: np.ndarray, frame_id: str, stamp_ns: int,
                     times: Optional[np.ndarray] = None,
                     goal_orientation: Optional[Sequence[float]] = None) -> bytes:
     """CDR bytes of :func:`conversions.points_to_path` with the same arguments."""
-    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    count = len(pts)
-    if times is None:
-        stamps = np.full(count, int(stamp_ns), dtype=np.int64)
-    else:
-        offsets = np.array([int(round(float(t) * 1e9)) for t in np.asarray(times).tolist()],
-                           dtype=np.int64)
-        stamps = int(stamp_ns) + offsets
-    sec, nanosec = _split_ns(stamps)
-    quaternions = _yaw_quaternions(pts, goal_orientation)
+    poses = pose_array(points, goal_orientation)
+    count = len(poses)
+    sec, nanosec = _split_ns(pose_stamps_ns(stamp_ns, count, times))
     columns = {'sec': sec, 'nanosec': nanosec,
                'frame_len': np.full(count, len(frame_id.encode('utf-8')) + 1)}
-    for index, name in enumerate(_POSE_FIELDS[:3]):
-        columns[name] = pts[:, index]
-    for index, name in enumerate(_POSE_FIELDS[3:]):
-        columns[name] = quaternions[:, index]
+    for index, name in enumerate(_POSE_FIELDS):
+        columns[name] = poses[:, index]
     fields: List[Field] = [('sec', 'i4'), ('nanosec', 'u4'), *_string_fields('frame', frame_id)]
     fields += [(name, 'f8') for name in _POSE_FIELDS]
     writer = _Writer()
@@ -177,7 +157,7 @@ def serialized_path(points: np.ndarray, frame_id: str, stamp_ns: int,
 def serialized_plan_path(result: PlanResult, frame_id: str, stamp_ns: int,
                          goal_orientation: Optional[Sequence[float]] = None) -> bytes:
     """CDR bytes of :func:`conversions.plan_to_path`."""
-    trajectory = _require_trajectory(result)
+    trajectory = require_trajectory(result)
     return serialized_path(trajectory.positions, frame_id, stamp_ns, trajectory.times,
                            goal_orientation)
 
@@ -192,26 +172,23 @@ def serialized_trajectory(result: PlanResult, frame_id: str, stamp_ns: int,
                           goal_orientation: Optional[Sequence[float]] = None,
                           joint_name: str = 'base_link') -> bytes:
     """CDR bytes of :func:`conversions.plan_to_trajectory`."""
-    trajectory = _require_trajectory(result)
-    positions = np.asarray(trajectory.positions, dtype=np.float64).reshape(-1, 3)
-    count = len(positions)
-    quaternions = _yaw_quaternions(positions, goal_orientation)
-    durations = np.array([int(round(float(t) * 1e9))
-                          for t in np.asarray(trajectory.times).tolist()], dtype=np.int64)
-    sec, nanosec = _split_ns(durations)
+    trajectory = require_trajectory(result)
+    poses = pose_array(trajectory.positions, goal_orientation)
+    count = len(poses)
+    sec, nanosec = _split_ns(seconds_to_ns(trajectory.times))
     ones = np.ones(count, dtype=np.uint32)
     columns = {'n_transforms': ones, 'n_velocities': ones, 'n_accelerations': ones,
                'sec': sec, 'nanosec': nanosec}
     velocities = np.asarray(trajectory.velocities, dtype=np.float64).reshape(-1, 3)
     accelerations = np.asarray(trajectory.accelerations, dtype=np.float64).reshape(-1, 3)
     for index, axis in enumerate('xyz'):
-        columns[f't{axis}'] = positions[:, index]
+        columns[f't{axis}'] = poses[:, index]
         columns[f'v{axis}'] = velocities[:, index]
         columns[f'a{axis}'] = accelerations[:, index]
         # Angular parts stay zero: the planner does not time the heading.
         columns[f'w{axis}'] = columns[f'b{axis}'] = np.zeros(count)
     for index, name in enumerate(('qx', 'qy', 'qz', 'qw')):
-        columns[name] = quaternions[:, index]
+        columns[name] = poses[:, 3 + index]
     fields: List[Field] = [('n_transforms', 'u4')]
     fields += [(name, 'f8') for name in ('tx', 'ty', 'tz', 'qx', 'qy', 'qz', 'qw')]
     fields += [('n_velocities', 'u4')]
@@ -227,9 +204,3 @@ def serialized_trajectory(result: PlanResult, frame_id: str, stamp_ns: int,
     writer.u32(count)
     writer.records(fields, columns, count)
     return writer.bytes()
-
-
-def _require_trajectory(result: PlanResult):
-    if result.trajectory is None:
-        raise ValueError(f'plan has no trajectory (status {result.status.value})')
-    return result.trajectory

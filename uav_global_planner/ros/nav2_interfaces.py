@@ -39,6 +39,9 @@ Semantics, as Nav2's planner server:
 
 Without nav2_msgs (a venv whose set-up could not build it) the action servers are off, the node
 logs that once with the reason, and ``get_plan`` and the topics work as before.
+
+One module, though long (about 600 lines): the three servers share the request queue to the
+planning worker, the frame and tolerance checks and the error-code mapping.
 """
 
 from dataclasses import dataclass, field
@@ -65,8 +68,9 @@ from uav_global_planner.core.errors import InvalidInputError
 from uav_global_planner.core.result import PlanResult
 from uav_global_planner.core.status import (NAV2_CODE_BY_STATUS, NAV2_INVALID_PLANNER,
                                             NAV2_NONE, NAV2_UNKNOWN, PlanStatus)
-from uav_global_planner.ros import cdr
 from uav_global_planner.ros import conversions as conv
+from uav_global_planner.ros.plan_writer import startup_plan_writer
+from uav_global_planner.ros.start_source import StartSource
 
 try:
     from nav2_msgs.action import ComputePathThroughPoses, ComputePathToPose
@@ -504,7 +508,7 @@ class PlannerInterfaces:
             text = PREEMPTED_TEXT if request.preempted else 'cancelled before planning'
             return _Outcome(None, PlanStatus.CANCELED, text, 0.0)
         if request.start is not None:
-            start, source = request.start, 'request'
+            start, source = request.start, StartSource.REQUEST
         else:
             start, source = snapshot.start, snapshot.start_source
         started = time.perf_counter()
@@ -526,7 +530,7 @@ class PlannerInterfaces:
             if request.publish:
                 data = self._host.publish_plan(result, frame, stamp_ns, orientation)
             else:
-                data = cdr.serialized_plan_path(result, frame, stamp_ns, orientation)
+                data = startup_plan_writer().plan_path(result, frame, stamp_ns, orientation)
             path = deserialize_message(data, Path)
         message = result.message
         failed_leg = getattr(result, 'failed_leg', -1)

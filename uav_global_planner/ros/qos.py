@@ -23,42 +23,45 @@ no error on the data path; rclpy logs "New publisher discovered ... incompatible
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 
+def keep_last(depth: int, reliable: bool = True, latched: bool = False) -> QoSProfile:
+    """A ``KEEP_LAST`` profile: every profile of the planner's topics is one.
+
+    Parameters
+    ----------
+    depth : int
+        Messages kept per publisher or subscription, >= 1.
+    reliable : bool
+        RELIABLE, else BEST_EFFORT.
+    latched : bool
+        TRANSIENT_LOCAL (late subscribers get the last ``depth`` messages), else VOLATILE.
+    """
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth,
+                      reliability=(ReliabilityPolicy.RELIABLE if reliable
+                                   else ReliabilityPolicy.BEST_EFFORT),
+                      durability=(DurabilityPolicy.TRANSIENT_LOCAL if latched
+                                  else DurabilityPolicy.VOLATILE))
+
+
 #: Latched outputs: a late subscriber (RViz, a controller started later) gets the last plan.
-LATCHED_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
-                         reliability=ReliabilityPolicy.RELIABLE,
-                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+LATCHED_QOS = keep_last(1, latched=True)
 #: Obstacle markers: a map-like topic; a late-starting or restarted planner still gets the
 #: published markers. Depth 100 keeps a map sent as up to 100 incremental arrays, when the
 #: publisher keeps as many.
-OBSTACLES_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
-                           reliability=ReliabilityPolicy.RELIABLE,
-                           durability=DurabilityPolicy.TRANSIENT_LOCAL)
+OBSTACLES_QOS = keep_last(100, latched=True)
 #: Occupied-space clouds, the default: reliable, so large clouds arrive; only the newest
 #: matters (the node keeps the latest one and drops any it had no time for).
-CLOUD_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
-                       reliability=ReliabilityPolicy.RELIABLE,
-                       durability=DurabilityPolicy.VOLATILE)
+CLOUD_QOS = keep_last(1)
 #: Clouds from best-effort sensor publishers (``cloud_qos_reliability: best_effort``).
-CLOUD_BEST_EFFORT_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
-                                   reliability=ReliabilityPolicy.BEST_EFFORT,
-                                   durability=DurabilityPolicy.VOLATILE)
+CLOUD_BEST_EFFORT_QOS = keep_last(1, reliable=False)
 #: Commands (goal, start pose): reliable, as RViz publishes them; latest wins anyway.
-COMMAND_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=5,
-                         reliability=ReliabilityPolicy.RELIABLE,
-                         durability=DurabilityPolicy.VOLATILE)
+COMMAND_QOS = keep_last(5)
 #: Sensor streams (odometry): best effort matches reliable and best-effort publishers, and only
 #: the newest sample matters.
-SENSOR_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
-                        reliability=ReliabilityPolicy.BEST_EFFORT,
-                        durability=DurabilityPolicy.VOLATILE)
+SENSOR_QOS = keep_last(1, reliable=False)
 #: /diagnostics as diagnostic_aggregator expects it.
-DIAGNOSTICS_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
-                             reliability=ReliabilityPolicy.RELIABLE,
-                             durability=DurabilityPolicy.VOLATILE)
+DIAGNOSTICS_QOS = keep_last(10)
 #: Listeners that must not miss a burst (tools and tests reading diagnostics or plans).
-MONITOR_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=50,
-                         reliability=ReliabilityPolicy.RELIABLE,
-                         durability=DurabilityPolicy.VOLATILE)
+MONITOR_QOS = keep_last(50)
 
 #: ``cloud_qos_reliability`` values and their subscription profiles.
 CLOUD_QOS_BY_RELIABILITY = {'reliable': CLOUD_QOS, 'best_effort': CLOUD_BEST_EFFORT_QOS}

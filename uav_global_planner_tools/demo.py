@@ -4,20 +4,19 @@ Starts ``planner_node`` with ``config/planner.yaml`` (plus the scene's bounds, d
 eta) and ``scene_publisher`` as child processes, receives the plan over ROS like any client,
 prints a one-screen summary and writes a 3D plot of the scene with the received paths.
 
-It runs in its own ROS domain unless ``ROS_DOMAIN_ID`` or ``--domain-id`` says otherwise, with
-discovery limited to this machine, so it never disturbs (or is disturbed by) other ROS systems.
+It runs in a ROS domain of its own, one that no other process on this machine uses (never the
+``ROS_DOMAIN_ID`` of the shell), with discovery limited to this machine, so it never pushes its
+scene into someone else's planner nor hears another one. ``--domain-id N`` picks the domain and
+``--join-domain`` joins ``$ROS_DOMAIN_ID``, for watching the demo from other ROS tools.
 """
 
 import argparse
-import os
 from pathlib import Path
-import signal
-import subprocess
 import sys
 import tempfile
 import threading
 import time
-from typing import Dict, List, Optional, Sequence
+from typing import Callable, Dict, List, Optional, Tuple
 
 from diagnostic_msgs.msg import DiagnosticArray
 from nav_msgs.msg import Path as PathMsg
@@ -26,78 +25,21 @@ import numpy as np
 from uav_global_planner.core.errors import InvalidInputError
 from uav_global_planner.core.scene import find_scene, load_scene, Scene
 from uav_global_planner.ros import conversions as conv
-from uav_global_planner.ros.background_node import BackgroundNode, choose_domain_id
+from uav_global_planner.ros.background_node import BackgroundNode
+from uav_global_planner.ros.names import NODE_NAME
 from uav_global_planner.ros.qos import LATCHED_QOS, MONITOR_QOS
+from uav_global_planner_tools.domains import choose_domain_id, environment_domain_id
+from uav_global_planner_tools.processes import (find_config, localhost_discovery, NodeProcess,
+                                                NodeProcessError, planner_command,
+                                                ros_environment, scene_parameters,
+                                                scene_publisher_command)
 
 DEFAULT_SCENE = 'paper_medium'
-_NODE_FQN = '/global_planner'
-_PACKAGE = 'uav_global_planner'
+_NODE_FQN = '/' + NODE_NAME
 
 
 # After the first plan, wait this long for replans (obstacles arriving after the goal) [s].
 _SETTLE_S = 1.0
-
-
-def find_config(name: str = 'planner.yaml') -> Path:
-    """A file of the package's ``config`` folder: the source tree first, then the ament share.
-
-    Raises
-    ------
-    FileNotFoundError
-    """
-    candidates = [Path(__file__).resolve().parents[2] / 'config' / name]
-    try:
-        from ament_index_python.packages import get_package_share_directory
-        candidates.append(Path(get_package_share_directory(_PACKAGE)) / 'config' / name)
-    except Exception:  # noqa: BLE001 - no ament index in a plain venv; the source tree serves
-        pass
-    for candidate in candidates:
-        if candidate.is_file():
-            return candidate
-    raise FileNotFoundError(f'{name} not found in {", ".join(str(c) for c in candidates)}')
-
-
-def _scene_overrides(scene: Scene) -> List[str]:
-    """``-p`` arguments that make the node use the scene's workspace and paper parameters."""
-    config = scene.config
-
-    def floats(values: Sequence[float]) -> str:
-        return '[' + ', '.join(repr(float(v)) for v in values) + ']'
-
-    return ['-p', f'frame_id:={scene.frame_id}',
-            '-p', f'bounds.min:={floats(config.bounds_min)}',
-            '-p', f'bounds.max:={floats(config.bounds_max)}',
-            '-p', f'resolution:={float(config.resolution)!r}',
-            '-p', f'safety_margin:={float(config.safety_margin)!r}',
-            '-p', f'adaptive_threshold:={float(config.adaptive_threshold)!r}']
-
-
-class _Child:
-    """A child process whose output goes to a log file."""
-
-    def __init__(self, name: str, command: List[str], env: Dict[str, str],
-                 log_dir: Path) -> None:
-        self.name = name
-        self.log_path = log_dir / f'{name}.log'
-        self._log = open(self.log_path, 'w', encoding='utf-8')
-        self.process = subprocess.Popen(command, env=env, stdout=self._log,
-                                        stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
-                                        start_new_session=True)
-
-    def tail(self, lines: int = 15) -> str:
-        text = self.log_path.read_text(encoding='utf-8', errors='replace').splitlines()
-        return '\n'.join(f'    {line}' for line in text[-lines:])
-
-    def stop(self) -> Optional[int]:
-        if self.process.poll() is None:
-            self.process.send_signal(signal.SIGINT)
-            try:
-                self.process.wait(10.0)
-            except subprocess.TimeoutExpired:
-                self.process.kill()
-                self.process.wait()
-        self._log.close()
-        return self.process.returncode
 
 
 class _Listener:
@@ -145,13 +87,14 @@ class _Listener:
         self._background.close()
 
 
-def _wait(condition, children: List['_Child'], timeout_s: float) -> bool:
+def _wait(condition: Callable[[], bool], children: Dict[str, NodeProcess],
+          timeout_s: float) -> bool:
     """Poll ``condition`` until true (True), a child exits or the timeout passes (False)."""
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
         if condition():
             return True
-        if any(child.process.poll() is not None for child in children):
+        if any(child.process.poll() is not None for child in children.values()):
             return False
         time.sleep(0.1)
     return bool(condition())
@@ -165,7 +108,7 @@ def _path_for_stamp(paths: List[PathMsg], stamp_ns: int) -> Optional[PathMsg]:
 
 
 def _summary(scene: Scene, values: Dict[str, str], plan: Optional[PathMsg],
-             unsmoothed: Optional[PathMsg], domain_id: int, plot: str) -> str:
+             unsmoothed: Optional[PathMsg], domain: str, plot: str) -> str:
     """The one-screen report."""
     def v(key: str) -> str:
         return values.get(key, '?')
@@ -180,7 +123,7 @@ def _summary(scene: Scene, values: Dict[str, str], plan: Optional[PathMsg],
     lines = [
         f'uav_global_planner demo: scene {scene.name!r}',
         f'  {scene.description}' if scene.description else None,
-        f'  ROS domain        : {domain_id} (localhost only), frame {v("frame_id")!r}',
+        f'  ROS domain        : {domain}, localhost only; frame {v("frame_id")!r}',
         f'  status            : {v("status")} (Nav2 code {v("status_code")})',
         f'  start -> goal     : {v("start")} -> {v("goal")}',
         f'  start source      : {v("start_source")}',
@@ -241,10 +184,30 @@ def _parse(argv: Optional[List[str]]) -> argparse.Namespace:
     parser.add_argument('--timeout', type=float, default=180.0, metavar='S',
                         help='give up after S seconds without a plan (default 180; the first '
                              'run compiles the search kernels)')
-    parser.add_argument('--domain-id', type=int, default=None,
-                        help='ROS domain (default: $ROS_DOMAIN_ID, else one derived from the '
-                             'process id)')
+    domain = parser.add_mutually_exclusive_group()
+    domain.add_argument('--domain-id', type=int, default=None, metavar='N',
+                        help='run in ROS domain N (default: a domain that no other process on '
+                             'this machine uses, never $ROS_DOMAIN_ID)')
+    domain.add_argument('--join-domain', action='store_true',
+                        help='run in $ROS_DOMAIN_ID (0 when unset), beside the ROS nodes there')
     return parser.parse_args(argv)
+
+
+def choose_domain(options: argparse.Namespace) -> Tuple[int, str]:
+    """The demo's ROS domain and how it was chosen (for the summary).
+
+    Raises
+    ------
+    RuntimeError
+        When every safe domain id is in use.
+    """
+    if options.domain_id is not None:
+        return options.domain_id, f'{options.domain_id} (--domain-id)'
+    if options.join_domain:
+        joined = environment_domain_id() or 0
+        return joined, f'{joined} (joined $ROS_DOMAIN_ID)'
+    own = choose_domain_id()
+    return own, f'{own} (its own, free on this machine)'
 
 
 def main(argv: Optional[List[str]] = None) -> int:
@@ -263,39 +226,39 @@ def main(argv: Optional[List[str]] = None) -> int:
     except (InvalidInputError, FileNotFoundError) as error:
         print(f'uav-demo: {error}', file=sys.stderr)
         return 2
-    domain_id = choose_domain_id(options.domain_id)
+    try:
+        domain_id, domain = choose_domain(options)
+    except RuntimeError as error:
+        print(f'uav-demo: {error}', file=sys.stderr)
+        return 1
     output = options.output or Path(f'uav_demo_{scene.name}.png')
     log_dir = Path(tempfile.mkdtemp(prefix='uav_demo_'))
-    env = dict(os.environ)
-    env.update({'ROS_DOMAIN_ID': str(domain_id), 'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST',
-                'PYTHONUNBUFFERED': '1', 'RCUTILS_COLORIZED_OUTPUT': '0'})
-    env.setdefault('ROS_LOG_DIR', str(log_dir / 'ros'))
-    os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    env = ros_environment(domain_id, log_dir / 'ros')
+    localhost_discovery()  # for the listener in this process
 
     print(f'uav-demo: starting planner_node and scene_publisher (domain {domain_id}, logs in '
           f'{log_dir}) ...', flush=True)
     started = time.monotonic()
-    children: List[_Child] = []
+    children: Dict[str, NodeProcess] = {}
     listener: Optional[_Listener] = None
     try:
-        children.append(_Child('planner_node', [
-            sys.executable, '-m', 'uav_global_planner.ros.planner_node', '--ros-args',
-            '--params-file', str(config_path), *_scene_overrides(scene)], env, log_dir))
+        children['planner_node'] = NodeProcess(
+            planner_command(parameters=scene_parameters(scene), params_file=config_path), env,
+            log_dir / 'planner_node.log')
         listener = _Listener(domain_id)
         # The scene (and so the goal) goes out only once this listener can hear the planner.
         ready = _wait(listener.planner_discovered, children, options.timeout)
         if ready:
-            children.append(_Child('scene_publisher', [
-                sys.executable, '-m', 'uav_global_planner.ros.scene_publisher',
-                str(scene_path)], env, log_dir))
+            children['scene_publisher'] = NodeProcess(
+                scene_publisher_command(str(scene_path)), env, log_dir / 'scene_publisher.log')
             remaining = options.timeout - (time.monotonic() - started)
             ready = _wait(lambda: bool(listener.diagnostics), children, remaining)
         if not ready:
             print(f'uav-demo: no plan within {options.timeout} s', file=sys.stderr)
-            for child in children:
+            for name, child in children.items():
                 state = child.process.poll()
                 status = 'running' if state is None else f'exited with {state}'
-                print(f'  {child.name}, {status} ({child.log_path}):\n{child.tail()}',
+                print(f'  {name}, {status} ({child.log_path}):\n{child.tail(15)}',
                       file=sys.stderr)
             return 1
         # Obstacles may reach the node after the goal; it then replans by itself.
@@ -310,15 +273,18 @@ def main(argv: Optional[List[str]] = None) -> int:
                 plan = _path_for_stamp(listener.plans, stamp_ns)
                 unsmoothed = _path_for_stamp(listener.unsmoothed, stamp_ns)
         plot = _plot(scene, plan, unsmoothed, output)
-        print(_summary(scene, values, plan, unsmoothed, domain_id, plot))
+        print(_summary(scene, values, plan, unsmoothed, domain, plot))
         print(f'  wall time         : {time.monotonic() - started:.1f} s', flush=True)
         return 0 if values.get('status') == 'ok' and plan is not None else 1
     except KeyboardInterrupt:
         print('uav-demo: interrupted', file=sys.stderr)
         return 130
     finally:
-        for child in reversed(children):
-            child.stop()
+        for name, child in reversed(list(children.items())):
+            try:
+                child.stop(timeout_s=10.0)
+            except NodeProcessError:
+                print(f'uav-demo: {name} had to be killed ({child.log_path})', file=sys.stderr)
         if listener is not None:
             listener.close()
 

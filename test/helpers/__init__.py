@@ -1,0 +1,1 @@
+"""Builders and readers shared by the tests."""

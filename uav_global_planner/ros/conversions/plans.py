@@ -1,0 +1,126 @@
+"""Plans out: ``nav_msgs/Path`` and ``trajectory_msgs/MultiDOFJointTrajectory`` of a plan.
+
+Each pose heads along the path and the last one takes the goal orientation
+(:func:`~uav_global_planner.ros.conversions.poses.pose_array`); pose stamps are the plan time
+plus the pose's time from the start (:func:`pose_stamps_ns`). :mod:`uav_global_planner.ros.cdr`
+writes the same messages as bytes from the same arrays.
+"""
+
+from typing import Optional, Sequence
+
+from builtin_interfaces.msg import Duration
+from geometry_msgs.msg import Quaternion, Transform, Twist
+from nav_msgs.msg import Path
+import numpy as np
+from std_msgs.msg import Header
+from trajectory_msgs.msg import MultiDOFJointTrajectory, MultiDOFJointTrajectoryPoint
+
+from uav_global_planner.core.result import PlanResult, Trajectory
+from uav_global_planner.ros.conversions.poses import pose_array, pose_stamped, vector3
+from uav_global_planner.ros.conversions.stamps import seconds_to_ns, time_from_ns
+
+
+def pose_stamps_ns(stamp_ns: int, count: int, times: Optional[np.ndarray] = None) -> np.ndarray:
+    """Stamps (int64 [ns]) of ``count`` poses: ``stamp_ns`` plus each time from start [s].
+
+    Without ``times`` every pose carries ``stamp_ns``.
+    """
+    if times is None:
+        return np.full(count, int(stamp_ns), dtype=np.int64)
+    return int(stamp_ns) + seconds_to_ns(times)
+
+
+def points_to_path(points: np.ndarray, frame_id: str, stamp_ns: int,
+                   times: Optional[np.ndarray] = None,
+                   goal_orientation: Optional[Sequence[float]] = None) -> Path:
+    """``nav_msgs/Path`` of a polyline, heading along the path, goal orientation at the end.
+
+    Parameters
+    ----------
+    points : numpy.ndarray, shape (M, 3)
+        Path positions [m].
+    frame_id : str
+    stamp_ns : int
+        Plan time [ns]: the header stamp and, with ``times``, the start of the pose stamps.
+    times : numpy.ndarray, shape (M,), optional
+        Time from start of each pose [s]; pose stamps are ``stamp + times``. Without it every
+        pose carries the header stamp.
+    goal_orientation : sequence of 4 float, optional
+        Quaternion (x, y, z, w) of the last pose; default: the heading of the last step.
+    """
+    poses = pose_array(points, goal_orientation)
+    stamps = pose_stamps_ns(stamp_ns, len(poses), times)
+    msg = Path()
+    msg.header = Header(frame_id=frame_id, stamp=time_from_ns(stamp_ns))
+    msg.poses = [pose_stamped(row[:3], frame_id, stamp, row[3:])
+                 for row, stamp in zip(poses.tolist(), stamps.tolist())]
+    return msg
+
+
+def plan_to_path(result: PlanResult, frame_id: str, stamp_ns: int,
+                 goal_orientation: Optional[Sequence[float]] = None) -> Path:
+    """Smoothed, time-stamped path of a successful plan (pose stamps = plan time + times)."""
+    trajectory = require_trajectory(result)
+    return points_to_path(trajectory.positions, frame_id, stamp_ns, trajectory.times,
+                          goal_orientation)
+
+
+def plan_to_unsmoothed_path(result: PlanResult, frame_id: str, stamp_ns: int,
+                            goal_orientation: Optional[Sequence[float]] = None) -> Path:
+    """Grid-node path of a plan (all poses stamped with the plan time)."""
+    return points_to_path(result.path, frame_id, stamp_ns, None, goal_orientation)
+
+
+def plan_to_trajectory(result: PlanResult, frame_id: str, stamp_ns: int,
+                       goal_orientation: Optional[Sequence[float]] = None,
+                       joint_name: str = 'base_link') -> MultiDOFJointTrajectory:
+    """``MultiDOFJointTrajectory`` with one joint: positions, yaw, velocities, accelerations.
+
+    Angular velocities and accelerations are zero: the planner does not time the heading.
+    """
+    trajectory = require_trajectory(result)
+    poses = pose_array(trajectory.positions, goal_orientation)
+    msg = MultiDOFJointTrajectory()
+    msg.header = Header(frame_id=frame_id, stamp=time_from_ns(stamp_ns))
+    msg.joint_names = [joint_name]
+    points = []
+    durations = seconds_to_ns(trajectory.times).tolist()
+    for index, (x, y, z, qx, qy, qz, qw) in enumerate(poses.tolist()):
+        point = MultiDOFJointTrajectoryPoint()
+        point.transforms = [Transform(translation=vector3((x, y, z)),
+                                      rotation=Quaternion(x=qx, y=qy, z=qz, w=qw))]
+        point.velocities = [Twist(linear=vector3(trajectory.velocities[index]))]
+        point.accelerations = [Twist(linear=vector3(trajectory.accelerations[index]))]
+        sec, nanosec = divmod(durations[index], 1_000_000_000)
+        point.time_from_start = Duration(sec=sec, nanosec=nanosec)
+        points.append(point)
+    msg.points = points
+    return msg
+
+
+def empty_trajectory(frame_id: str, stamp_ns: int,
+                     joint_name: str = 'base_link') -> MultiDOFJointTrajectory:
+    """A trajectory without points: withdraws a latched one."""
+    msg = MultiDOFJointTrajectory()
+    msg.header = Header(frame_id=frame_id, stamp=time_from_ns(stamp_ns))
+    msg.joint_names = [joint_name]
+    return msg
+
+
+def path_to_points(msg: Path) -> np.ndarray:
+    """Positions (M, 3) [m] of the poses of a ``nav_msgs/Path``."""
+    return np.array([[p.pose.position.x, p.pose.position.y, p.pose.position.z]
+                     for p in msg.poses], dtype=np.float64).reshape(-1, 3)
+
+
+def require_trajectory(result: PlanResult) -> Trajectory:
+    """The trajectory of a plan.
+
+    Raises
+    ------
+    ValueError
+        For a failed plan, which has none.
+    """
+    if result.trajectory is None:
+        raise ValueError(f'plan has no trajectory (status {result.status.value})')
+    return result.trajectory

@@ -1,0 +1,136 @@
+"""Parameter changes of the planner node: validated as a whole, applied at the next plan.
+
+A mixin of :class:`~uav_global_planner.ros.planner_node.PlannerNode`: the on-set callback
+refuses a set of values that does not validate together (and a geofence file that cannot be
+read, so the geofence in force stays); the post-set callback hands the new settings to the
+worker and the intake, and withdraws the plan in force when the frame changes.
+"""
+
+from typing import Any, Dict, List
+
+import numpy as np
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.exceptions import ParameterNotDeclaredException, ParameterUninitializedException
+from rclpy.parameter import Parameter
+
+from uav_global_planner.core.errors import InvalidInputError
+from uav_global_planner.ros import conversions as conv
+from uav_global_planner.ros.geofence_source import (airspace_from_values, describe,
+                                                    geofence_key, GEOFENCE_PARAMETERS)
+from uav_global_planner.ros.node_state import SourceState
+from uav_global_planner.ros.parameters import (plain as _plain, settings_from_parameters,
+                                               SPECS_BY_NAME)
+from uav_global_planner.ros.start_source import StartSource
+
+
+class ParameterHandling:
+    """Parameter callbacks; own ``_param_values``, write ``_settings`` (under ``_wake``)."""
+
+    def _validate_parameters(self, parameters: List[Parameter]) -> SetParametersResult:
+        """On-set callback: accept only a set of values that validates as a whole."""
+        values = dict(self._param_values)
+        owned = False
+        geofence = self._geofence_values()
+        for parameter in parameters:
+            if parameter.name in GEOFENCE_PARAMETERS:
+                geofence[parameter.name] = parameter.value
+            if parameter.name not in SPECS_BY_NAME:
+                continue  # use_sim_time and friends belong to rclpy
+            if parameter.type_ == Parameter.Type.NOT_SET:
+                return SetParametersResult(
+                    successful=False, reason=f'{parameter.name} cannot be undeclared')
+            # Start-up parameters (STARTUP_ONLY) are read-only: rclpy refuses them first.
+            values[parameter.name] = parameter.value
+            owned = True
+        try:
+            if owned:
+                settings_from_parameters(values, self._map_margin_m)
+            if any(parameter.name in GEOFENCE_PARAMETERS for parameter in parameters):
+                # The file is read here, so a bad fence is refused with the reason and the
+                # geofence in force stays.
+                airspace_from_values(geofence)
+        except InvalidInputError as error:
+            self._log.warning(f'parameter change refused: {error}')
+            return SetParametersResult(successful=False, reason=str(error))
+        return SetParametersResult(successful=True)
+
+    def _geofence_values(self) -> Dict[str, Any]:
+        """The values of :data:`GEOFENCE_PARAMETERS` in force (geodetic_origin None when not
+        set)."""
+        values = {name: self._param_values[name] for name in GEOFENCE_PARAMETERS
+                  if name in self._param_values}
+        origin = GEOFENCE_PARAMETERS[-1]
+        try:
+            values[origin] = self.node.get_parameter(origin).value
+        except (ParameterNotDeclaredException, ParameterUninitializedException):
+            values[origin] = None
+        return values
+
+    def _apply_geofence(self) -> None:
+        """Read the geofence of the parameters in force and hand it to the intake, which
+        joins it to the map and replans the active goal."""
+        values = self._geofence_values()
+        key = geofence_key(values)
+        if self._geofence_key is None or key == self._geofence_key:
+            # Before the node has read its first geofence (declaring geodetic_origin runs this
+            # callback), or values set again unchanged: nothing to read.
+            return
+        try:
+            airspace = airspace_from_values(values)
+        except InvalidInputError as error:  # the file changed since it was validated
+            self._log.error(f'geofence not changed: {error}')
+            return
+        self._airspace, self._geofence_key = airspace, key
+        self._log.info(f'{describe(airspace, self._settings.geofence_file)}: in force from '
+                       'the next plan')
+        with self._wake:
+            # The worker plans nothing until the map holds this geofence.
+            self._geofence_requested += 1
+            serial = self._geofence_requested
+        with self._intake_cv:
+            self._inbox.airspace, self._inbox.airspace_serial = airspace, serial
+            self._intake_cv.notify_all()
+
+    def _apply_parameters(self, parameters: List[Parameter]) -> None:
+        """Post-set callback: the new settings take effect at the next plan; a running plan
+        with other settings is cancelled and made again."""
+        changed = {p.name: p.value for p in parameters if p.name in SPECS_BY_NAME}
+        geofence_changed = any(p.name in GEOFENCE_PARAMETERS for p in parameters)
+        if not changed:
+            if geofence_changed:  # geodetic_origin alone
+                self._apply_geofence()
+            return
+        self._param_values.update(changed)
+        settings = settings_from_parameters(self._param_values, self._map_margin_m)
+        frame_changed = False
+        with self._wake:
+            previous = self._settings
+            self._settings = settings
+            if conv.normalize_frame(settings.frame_id) != conv.normalize_frame(
+                    previous.frame_id):
+                # Data stamped in the old frame means nothing in the new one; the intake
+                # drops the map (the prior map file stays: it is in the planning frame).
+                frame_changed = True
+                self._goal, self._start, self._start_source = None, None, StartSource.PARAMETER
+                for name in ('obstacles', 'obstacle_cloud'):
+                    self._sources[name] = SourceState()
+            start_matters = (self._start is None
+                             and not np.array_equal(settings.start, previous.start))
+            if settings.config != previous.config or start_matters:
+                self._settings_changed = True
+            self._wake.notify_all()
+        with self._intake_cv:
+            self._inbox.reconfigure = True
+            self._inbox.frame_reset = self._inbox.frame_reset or frame_changed
+            self._intake_cv.notify_all()
+        if frame_changed:
+            self._log.warning(f'frame_id changed to {settings.frame_id!r}: obstacles, '
+                              'start and goal cleared; republish them in the new frame')
+            # A plan in the old frame must not stay in force.
+            self._withdraw_in_force(settings.frame_id,
+                                    f'frame_id changed to {settings.frame_id!r}', None)
+        shown = ', '.join(f'{name} = {conv.format_value(_plain(value))}'
+                          for name, value in changed.items())
+        self._log.info(f'parameters set: {shown}; in force from the next plan')
+        if geofence_changed:
+            self._apply_geofence()

@@ -1,0 +1,412 @@
+"""The planning worker of the planner node: the only thread that touches the Planner.
+
+A mixin of :class:`~uav_global_planner.ros.planner_node.PlannerNode`. The worker takes a
+snapshot of the settings, map, start and goal when a plan begins (whatever arrives meanwhile is
+coalesced into at most one follow-up plan), plans, and publishes only a plan that keeps gamma
+from the newest map and still starts where the vehicle is; the Nav2 interfaces run their
+requests on it too (:meth:`PlanningWorker.submit`).
+"""
+
+import traceback
+from typing import Any, Callable, Dict, Optional, Tuple
+
+from diagnostic_msgs.msg import DiagnosticStatus
+import numpy as np
+
+from uav_global_planner.core.budget import PlanStage
+from uav_global_planner.core.planner import ClearanceVerdict, Planner
+from uav_global_planner.core.result import PlanResult
+from uav_global_planner.core.status import NAV2_CODE_BY_STATUS, NAV2_UNKNOWN, PlanStatus
+from uav_global_planner.ros import conversions as conv
+from uav_global_planner.ros.geofence_source import describe
+from uav_global_planner.ros.nav2_interfaces import nearest_free_node
+from uav_global_planner.ros.node_state import Goal, Snapshot
+from uav_global_planner.ros.parameters import NodeSettings
+from uav_global_planner.ros.start_source import StartSource
+
+#: Consecutive plans dropped because the vehicle moved away from their start while they were
+#: computed; after that many the plan is published anyway (with a note), so a slow plan behind
+#: a fast vehicle still gives one.
+_MAX_DRIFT_REPLANS = 3
+
+#: Outcomes that may change when the obstacles change, so a failed goal is retried then.
+_RETRY_ON_OBSTACLES = (PlanStatus.NO_VALID_PATH, PlanStatus.TIMEOUT, PlanStatus.START_OCCUPIED,
+                       PlanStatus.GOAL_OCCUPIED)
+
+
+class PlanningWorker:
+    """The worker thread and its plans; own ``_planner``, ``_last_result`` and the replan state."""
+
+    def _take_snapshot(self) -> Optional[Snapshot]:
+        """Wait for work; copy what the next step needs and clear the change flags."""
+        with self._wake:
+            self._wake.wait_for(lambda: self._stopping or (
+                self._geofence_applied >= self._geofence_requested
+                and (self._goal_changed or self._settings_changed or self._map_changed
+                     or self._replan_request is not None or bool(self._jobs))))
+            if self._stopping:
+                return None
+            settings = self._settings
+            if self._start is not None:
+                start, source = self._start, self._start_source
+            else:
+                start, source = settings.start, StartSource.PARAMETER
+            live = self._map
+            previous = self._worker_map if self._worker_map is not None else self._applied_map
+            changed = previous is None or live.version != previous.version
+            snapshot = Snapshot(
+                settings=settings, settings_changed=self._settings_changed,
+                obstacles=live.obstacles, obstacles_changed=changed,
+                obstacles_version=live.version, obstacles_stamp_ns=self._obstacles_stamp_ns,
+                goal=self._goal, goal_changed=self._goal_changed, start=start,
+                start_source=source, map=live, replan_reason=self._replan_request)
+            # From here on the worker reads this map's mask: the intake writes others.
+            self._worker_map = live
+            self._settings_changed = self._map_changed = self._goal_changed = False
+            self._replan_request = None
+            return snapshot
+
+    def _run_worker(self) -> None:
+        """Planning thread: the only thread that touches the Planner."""
+        while True:
+            snapshot = self._take_snapshot()
+            if snapshot is None:
+                return
+            try:
+                self._step(snapshot)
+                self._run_jobs(snapshot)
+            except Exception as error:  # noqa: BLE001 - a bug must not kill the planner
+                if self._is_stopping():
+                    return  # publishers are gone during shutdown; nothing left to report
+                self._log.error(f'planning step failed: {error!r}\n{traceback.format_exc()}')
+                values = {'event': 'plan', 'status': 'error', 'status_code': NAV2_UNKNOWN,
+                          'reason': repr(error)}
+                values.update(self._settings_values(snapshot.settings))
+                try:
+                    self._publish_diagnostics(self.node.get_clock().now().nanoseconds,
+                                              DiagnosticStatus.ERROR,
+                                              f'planning failed: {error!r}', values)
+                except Exception:  # noqa: BLE001 - shutting down
+                    return
+
+    def _is_stopping(self) -> bool:
+        with self._wake:
+            return self._stopping
+
+    def _apply_map(self, snap: Snapshot) -> None:
+        """Give the planner the snapshot's settings and map (its mask when it fits them)."""
+        config_changed = snap.settings_changed and snap.settings.config != self._planner.config
+        grid_changed = config_changed and (snap.settings.config.grid_key()
+                                           != self._planner.config.grid_key())
+        if config_changed:
+            self._planner.set_config(snap.settings.config)
+        live = snap.map
+        if live is not None and (live is not self._applied_map or grid_changed):
+            # The map's mask when it fits the settings; else the planner inflates its own at
+            # the next plan (the intake is still building the one for the new settings).
+            self._grid_from_map = self._planner.set_map(live.obstacles, live.blocked,
+                                                        live.grid_key, live.fallback)
+            self._applied_map = live
+
+    def _step(self, snap: Snapshot) -> None:
+        """Apply changed settings/map to the planner, then plan if something requires it."""
+        self._apply_map(snap)
+        goal = snap.goal
+        if goal is None:
+            return
+        # A goal not attempted yet (normally goal_changed; also after a failed step).
+        if goal.serial != self._last_goal_serial:
+            reason = 'new goal'
+        elif self._replan_reason is not None:
+            reason = self._replan_reason
+        elif snap.settings_changed:
+            reason = 'parameters changed'
+        elif snap.replan_reason is not None:
+            reason = snap.replan_reason
+        elif snap.obstacles_changed and snap.settings.replan_on_obstacle_change:
+            reason = self._obstacle_replan_reason(snap)
+            if reason is None:
+                return
+        else:
+            return
+        self._plan(snap, goal, reason)
+
+    def _obstacle_replan_reason(self, snap: Snapshot) -> Optional[str]:
+        """Why new obstacles require a replan of the active goal, or None if they do not.
+
+        The plan in force is re-checked by the intake as each map arrives (and withdrawn and
+        replanned from there if it collides); here only a failed goal is retried.
+        """
+        last = self._last_result
+        if last is None:
+            return None
+        if not last.ok:
+            return 'obstacles changed' if last.status in _RETRY_ON_OBSTACLES else None
+        with self._publish_lock:
+            in_force = self._in_force
+        if in_force is not None and in_force.result is last:
+            return None
+        if self._clear_ahead(last, snap):
+            return None
+        return 'obstacles changed and the current path is no longer clear'
+
+    def _clear_ahead(self, result: PlanResult, snap: Snapshot,
+                     obstacles: Optional[Any] = None) -> bool:
+        """True when the curve of ``result`` still ahead of the vehicle is certified to keep
+        gamma from ``obstacles`` (default: the planner's), by the clearance engine."""
+        return self._verdict_ahead(result, snap, obstacles).clear
+
+    def _verdict_ahead(self, result: PlanResult, snap: Snapshot,
+                       obstacles: Optional[Any] = None) -> ClearanceVerdict:
+        # Only the part still ahead of the vehicle matters.
+        position = snap.start if snap.start_source != StartSource.PARAMETER else None
+        verdict = self._planner.plan_is_clear(result, position, obstacles)
+        if not verdict.clear and verdict.blocked_at is not None:
+            self._log.warning('the plan is blocked near '
+                              f'{np.round(verdict.blocked_at, 3).tolist()}')
+        return verdict
+
+    def _cancel_test(self, goal: Goal, settings: NodeSettings) -> Callable[[], bool]:
+        """A cancel test for the plan of ``goal``: true once a newer goal, changed settings or
+        shutdown makes the plan pointless (checked every few milliseconds by the planner)."""
+        def cancelled() -> bool:
+            with self._wake:
+                return (self._stopping or self._goal is None
+                        or self._goal.serial != goal.serial
+                        or (self._settings_changed and self._settings.config != settings.config))
+        return cancelled
+
+    def _report_progress(self, goal: Goal, settings: NodeSettings, stage: PlanStage,
+                         elapsed_s: float, budget_s: float) -> None:
+        """Progress callback of a long plan: which stage it is in, on the log and /diagnostics."""
+        limit = f' of {budget_s:g} s' if budget_s > 0 else ''
+        text = f'planning: {stage.value} after {elapsed_s:.1f} s{limit}'
+        self._log.info(text)
+        values = {'event': 'progress', 'status': 'planning', 'stage': stage.value,
+                  'elapsed_s': elapsed_s, 'budget_s': budget_s, 'goal': goal.position}
+        values.update(self._settings_values(settings))
+        self._publish_diagnostics(self.node.get_clock().now().nanoseconds,
+                                  DiagnosticStatus.OK, text, values)
+
+    def _admissible_start(self, start: np.ndarray,
+                          settings: NodeSettings) -> Tuple[np.ndarray, str]:
+        """The start to plan from, and a note when it was moved.
+
+        A vehicle on the ground reads a little below the floor (odometry noise), or sits
+        within the safety margin of the ground it stands on: a start outside the bounds or
+        within gamma by at most ``start_tolerance`` is moved to the nearest free point (the
+        start projected into the bounds, or else the nearest free node), so the plan is a
+        take-off from there.
+        """
+        tolerance = settings.start_tolerance
+        if tolerance <= 0.0:
+            return start, ''
+        planner = self._planner
+        grid = planner.grid
+        config = planner.config
+        gamma = config.safety_margin
+        inside = bool(grid.contains(start))
+        clamped = np.clip(start, grid.bounds_min, grid.bounds_max)
+        outside_by = float(np.linalg.norm(start - clamped))
+        if inside and self._start_is_free(start, gamma):
+            return start, ''
+        if outside_by > tolerance:
+            return start, ''
+        room = 1e-4 * config.resolution
+        if self._start_is_free(clamped, gamma):
+            moved = clamped
+        else:
+            moved = nearest_free_node(grid, planner.obstacles, gamma, clamped,
+                                      max(tolerance - outside_by, 0.0) + room)
+            if moved is None or float(np.linalg.norm(moved - start)) > tolerance + room:
+                return start, ''
+        what = 'outside the bounds' if not inside else 'within the safety margin'
+        note = (f'start {np.round(start, 4).tolist()} is {what}; moved '
+                f'{float(np.linalg.norm(moved - start)):.3f} m to {np.round(moved, 4).tolist()} '
+                f'(start_tolerance {tolerance} m)')
+        return moved, note
+
+    def _start_is_free(self, point: np.ndarray, gamma: float) -> bool:
+        planner = self._planner
+        grid = planner.grid
+        if not bool(grid.contains(point)):
+            return False
+        node = tuple(grid.world_to_index(point))
+        if planner.blocked[node]:
+            return False
+        if planner.obstacles.is_empty():
+            return True
+        room = 1e-4 * planner.config.resolution
+        return float(planner.obstacles.distance(point)) > gamma + room
+
+    def _plan(self, snap: Snapshot, goal: Goal, reason: str) -> None:
+        settings = snap.settings
+        self._replan_reason = None
+        start, start_note = self._admissible_start(snap.start, settings)
+        if start_note:
+            self._log.info(start_note)
+        fallback_builds = self._planner.fallback_builds
+        result = self._planner.plan(
+            start, goal.position, cancel=self._cancel_test(goal, settings),
+            progress=lambda *report: self._report_progress(goal, settings, *report))
+        if self._planner.fallback_builds != fallback_builds and self._grid_from_map:
+            # This map needed the conservative grid: from now on the intake keeps it up to
+            # date too, so later plans do not inflate it (a second or so on a large map).
+            self._builder.want_fallback = True
+        if result.status is PlanStatus.CANCELED:
+            self._cancelled(snap, goal, result)
+            return
+        checked = (snap.obstacles_version, snap.obstacles_stamp_ns)
+        frame = settings.frame_id
+        drift_note = ''
+        with self._publish_lock:
+            with self._wake:
+                newest = (self._map, self._obstacles_stamp_ns)
+                vehicle = self._start if self._start_source != StartSource.PARAMETER else None
+                goal_current = self._goal is not None and self._goal.serial == goal.serial
+            if result.ok and newest[0].version != checked[0]:
+                # A map arrived while planning: publish only a plan that keeps gamma from it
+                # too; otherwise plan again on it at once.
+                if not self._clear_ahead(result, snap, newest[0].obstacles):
+                    self._discard(snap, goal, newest[0].version, newest[1])
+                    return
+                checked = (newest[0].version, newest[1])
+            if result.ok and vehicle is not None and snap.start_source != StartSource.PARAMETER:
+                moved = float(np.linalg.norm(vehicle - snap.start))
+                limit = settings.start_replan_distance
+                if limit > 0.0 and moved > limit and goal_current:
+                    if self._drift_replans < _MAX_DRIFT_REPLANS:
+                        self._drift_replans += 1
+                        self._drifted(snap, goal, moved)
+                        return
+                    drift_note = (f'the vehicle moved {moved:.2f} m from the start while '
+                                  f'planning ({_MAX_DRIFT_REPLANS} replans in a row); published')
+            stamp_ns = self.node.get_clock().now().nanoseconds
+            self._last_result, self._last_goal_serial = result, goal.serial
+            if result.ok:
+                self._drift_replans = 0
+                orientation = tuple(float(v) for v in goal.orientation)
+                self._latch(result, frame, stamp_ns, orientation, snap.start_source, checked[0],
+                            goal.serial)
+            withdrawn = False
+            if (not result.ok and self._latched is not None
+                    and not self._clear_ahead(self._latched, snap)):
+                # The latched plan now collides and nothing replaces it: a controller, even one
+                # that subscribes later, must not fly it. Empty messages withdraw it.
+                self._withdraw_plan(frame, stamp_ns)
+                withdrawn = True
+        if result.ok:
+            level = DiagnosticStatus.OK
+            self._log.info(
+                f'plan ({reason}): {result.smoothed_length_m:.2f} m smoothed, '
+                f'{result.expanded_nodes} nodes expanded in {result.planning_time_s:.3f} s, '
+                f'min clearance {result.min_clearance_m:.3f} m, start from {snap.start_source}')
+        else:
+            level = DiagnosticStatus.ERROR
+            self._log.warning(f'no plan ({reason}): {result.status.value} '
+                              f'(code {NAV2_CODE_BY_STATUS[result.status]}): {result.message}')
+        map_values = self._map_values(snap.map)
+        message = result.message
+        if result.ok and map_values['map_refused']:
+            # The map holds older data of a source whose newest message was refused: say so.
+            level = DiagnosticStatus.WARN
+            message += f'; map incomplete: {map_values["map_refused"]}'
+        values = conv.plan_diagnostic_values(result, snap.start_source, {
+            'reason': reason, 'plan_withdrawn': withdrawn, 'obstacles': len(snap.obstacles),
+            'obstacles_version': snap.obstacles_version,
+            'obstacles_stamp': snap.obstacles_stamp_ns, 'obstacles_checked_version': checked[0],
+            'obstacles_checked_stamp': checked[1], 'frame_id': frame,
+            'message': message, 'start_adjusted': bool(start_note),
+            'requested_start': snap.start,
+            'geofence': describe(self._airspace, snap.settings.geofence_file),
+            'climb_weight': snap.settings.config.climb_weight,
+            'descent_weight': snap.settings.config.descent_weight})
+        if start_note:
+            values['start_note'] = start_note
+        if snap.map is not None:
+            # Whether the plan searched the intake's mask (built off the planning thread, for
+            # the gamma below) or inflated its own (grid_build_time_s).
+            values['grid_from_map'] = self._grid_from_map
+            values['map_grid_gamma_m'] = float(snap.map.grid_key[3])
+            values['map_mask_full'] = snap.map.update.full
+            values['map_mask_time_s'] = snap.map.update.time_s
+        if drift_note:
+            values['note'] = drift_note
+        values.update(map_values)
+        self._publish_diagnostics(stamp_ns, level, f'{result.status.value}: {message}',
+                                  values)
+
+    def _cancelled(self, snap: Snapshot, goal: Goal, result: PlanResult) -> None:
+        """A plan stopped by a newer goal, new settings or shutdown: nothing is published but
+        an OK status (``event: plan_cancelled``); the newer request is served next."""
+        if self._is_stopping():
+            return
+        if self._goal_is(goal):
+            # Same goal, new settings: plan it again with them.
+            self._replan_reason = 'parameters changed while planning'
+        self._log.info(f'plan cancelled: {result.message}')
+        values = {'event': 'plan_cancelled', 'status': result.status.value,
+                  'reason': result.message, 'goal': goal.position}
+        values.update(self._settings_values(snap.settings))
+        self._publish_diagnostics(self.node.get_clock().now().nanoseconds,
+                                  DiagnosticStatus.OK, f'plan cancelled: {result.message}',
+                                  values)
+
+    def _goal_is(self, goal: Goal) -> bool:
+        with self._wake:
+            return self._goal is not None and self._goal.serial == goal.serial
+
+    def _discard(self, snap: Snapshot, goal: Goal, version: int, stamp_ns: int) -> None:
+        """Drop a plan that collides with obstacles received while it was computed.
+
+        Nothing is published but a WARN status (``event: plan_discarded``); the goal is planned
+        again on the new obstacles right away (their arrival has woken the worker already).
+        """
+        text = (f'plan discarded: obstacles (version {version}) arrived while planning '
+                f'(on version {snap.obstacles_version}) and the new plan does not keep gamma '
+                'from them; planning again')
+        self._drop_plan(snap, goal, 'obstacles changed while planning and collided with the plan',
+                        text, {'obstacles_version': snap.obstacles_version,
+                               'obstacles_stamp': snap.obstacles_stamp_ns,
+                               'obstacles_checked_version': version,
+                               'obstacles_checked_stamp': stamp_ns, 'goal': goal.position})
+
+    def _drop_plan(self, snap: Snapshot, goal: Goal, reason: str, text: str,
+                   extra: Dict[str, Any]) -> None:
+        """Forget the plan computed for ``goal`` (it is planned again, for ``reason``), log
+        ``text`` and publish it as a WARN status (``event: plan_discarded``) with the values
+        ``extra`` and the settings of ``snap``."""
+        self._last_result, self._last_goal_serial = None, goal.serial
+        self._replan_reason = reason
+        self._log.info(text)
+        values = {'event': 'plan_discarded', 'status': 'discarded', 'reason': text, **extra}
+        values.update(self._settings_values(snap.settings))
+        self._publish_diagnostics(self.node.get_clock().now().nanoseconds,
+                                  DiagnosticStatus.WARN, text, values)
+
+    def _drifted(self, snap: Snapshot, goal: Goal, moved_m: float) -> None:
+        """Drop a plan whose start the vehicle left while it was computed; plan again from
+        where the vehicle is now (``event: plan_discarded``, WARN)."""
+        text = (f'plan discarded: the vehicle moved {moved_m:.2f} m from its start while it was '
+                f'computed (start_replan_distance {snap.settings.start_replan_distance} m); '
+                'planning again from the newest position')
+        self._drop_plan(snap, goal, 'the vehicle moved away from the start while planning', text,
+                        {'goal': goal.position, 'start': snap.start})
+        with self._wake:
+            # Nothing else may wake the worker: ask for the replan explicitly.
+            self._replan_request = self._replan_reason
+            self._wake.notify_all()
+        self._replan_reason = None
+
+    def submit(self, job: Callable[[Planner, Snapshot], None]) -> None:
+        """Run ``job(planner, snapshot)`` on the worker after the pending settings and map
+        are applied (the Nav2 interfaces plan their requests so); returns at once."""
+        with self._wake:
+            self._jobs.append(job)
+            self._wake.notify_all()
+
+    def _run_jobs(self, snapshot: Snapshot) -> None:
+        with self._wake:
+            jobs, self._jobs = self._jobs, []
+        for job in jobs:
+            job(self._planner, snapshot)
