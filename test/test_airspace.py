@@ -19,6 +19,7 @@ import re
 import subprocess
 import sys
 
+from helpers.documents import changed
 from matplotlib.path import Path as PlanePath
 import numpy as np
 import pymap3d
@@ -323,19 +324,6 @@ GEOFENCE = {
 }
 
 
-def _geofence_with(path, value):
-    data = copy.deepcopy(GEOFENCE)
-    *parents, last = path
-    target = data
-    for key in parents:
-        target = target[key]
-    if value is KeyError:
-        del target[last]
-    else:
-        target[last] = value
-    return data
-
-
 @pytest.mark.parametrize('path, value, message', [
     (('exclusion', 1, 'radius'), -1.0,
      r'^geofence\.exclusion\[1\]\.radius: must be > 0 m, got -1\.0$'),
@@ -358,7 +346,7 @@ def _geofence_with(path, value):
 ])
 def test_geofence_errors_name_the_key_path(path, value, message):
     with pytest.raises(InvalidInputError, match=message):
-        parse_geofence(_geofence_with(path, value))
+        parse_geofence(changed(GEOFENCE, path, value))
 
 
 def test_the_geofence_parses_with_labels():

@@ -2,6 +2,7 @@
 
 import copy
 
+from helpers.documents import changed
 import numpy as np
 import pytest
 import yaml
@@ -47,19 +48,6 @@ def test_all_three_obstacle_types_parse():
     assert scene.obstacles.points.shape == (2, 3)
 
 
-def _with(path, value):
-    data = copy.deepcopy(VALID)
-    *parents, last = path
-    target = data
-    for key in parents:
-        target = target[key]
-    if value is KeyError:
-        del target[last]
-    else:
-        target[last] = value
-    return data
-
-
 @pytest.mark.parametrize('path, value, message', [
     (('resolution',), KeyError, 'resolution: missing required key'),
     (('goal',), KeyError, 'goal: missing required key'),
@@ -87,7 +75,7 @@ def _with(path, value):
 ])
 def test_malformed_scene_names_the_key_path(path, value, message):
     with pytest.raises(InvalidInputError, match=message):
-        parse_scene(_with(path, value))
+        parse_scene(changed(VALID, path, value))
 
 
 def test_empty_file_and_non_yaml_file(tmp_path):
