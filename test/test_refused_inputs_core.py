@@ -35,6 +35,7 @@ import shutil
 import subprocess
 from typing import Any, Callable, Dict, Tuple
 
+from helpers.documents import changed
 import numpy as np
 import pytest
 import test_scene
@@ -111,7 +112,7 @@ def _config(**changes: Any) -> Callable[[], Any]:
 def _with(path: Tuple, value: Any) -> Dict[str, Any]:
     """A deep copy of the valid scene with one key set (``KeyError``: deleted); an empty path
     gives ``value`` itself as the whole document."""
-    return test_scene._with(path, value) if path else value
+    return changed(VALID_SCENE, path, value) if path else value
 
 
 def _shell(center, half: float, wall: float = 0.1) -> list:
