@@ -31,7 +31,11 @@ setup(
                     # Readers of map files (core/mapfiles.py), imported only when used.
                     'maps': ['pypcd4', 'plyfile', 'laspy', 'lazrs', 'octomap-python'],
                     # The interactive 3D view of uav-plan plot --html.
-                    'plot': ['plotly']},
+                    'plot': ['plotly'],
+                    # The time-optimal reference of benchmarks/bench_timing.py.
+                    'bench': ['copp-py'],
+                    # Closed-loop flights in RotorPy (uav_global_planner_tools/flight).
+                    'flight': ['rotorpy']},
     # The shipped scenes are read as files (importlib.resources paths), so never as a zip.
     zip_safe=False,
     maintainer='uav_global_planner maintainers',

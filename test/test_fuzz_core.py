@@ -53,6 +53,7 @@ from uav_global_planner.core.config import ALGORITHMS, PlannerConfig, SMOOTHING_
 from uav_global_planner.core.errors import InvalidInputError
 from uav_global_planner.core.grid import VoxelGrid
 from uav_global_planner.core.inflation import blocked_mask
+from uav_global_planner.core.motion_limits import MotionLimits
 from uav_global_planner.core.obstacles import Box, ObstacleSet, PointSet, Sphere
 from uav_global_planner.core.planner import Planner
 from uav_global_planner.core.result import PlanResult
@@ -446,9 +447,7 @@ def check_trajectory(config: PlannerConfig, result: PlanResult) -> None:
         assert np.all(np.isfinite(array))
     assert trajectory.times[0] == 0.0
     assert np.all(np.diff(trajectory.times) > 0.0)
-    limits = (config.max_speed_horizontal, config.max_speed_vertical,
-              config.max_accel_horizontal, config.max_accel_vertical)
-    assert check_limits(trajectory, *limits) == []
+    assert check_limits(trajectory, MotionLimits.from_config(config), step_s=0.01) == []
     assert not trajectory.velocities[0].any() and not trajectory.velocities[-1].any()
 
 

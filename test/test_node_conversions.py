@@ -284,17 +284,28 @@ def test_unsmoothed_path_is_the_grid_path(plan_result):
 
 
 def test_trajectory_message(plan_result):
+    """Points every 0.05 s of the continuous reference: state, heading and yaw rate."""
     msg = conv.plan_to_trajectory(plan_result, 'map', 0, conv.yaw_quaternion(0.5))
     trajectory = plan_result.trajectory
     assert msg.joint_names == ['base_link']
-    assert len(msg.points) == len(trajectory.times)
+    times = np.array([duration_to_seconds(p.time_from_start) for p in msg.points])
+    assert times[0] == 0.0 and times[-1] == pytest.approx(trajectory.duration_s, abs=1e-9)
+    assert np.allclose(np.diff(times)[:-1], 0.05, atol=1e-9)
+    assert 0.0 < times[-1] - times[-2] <= 0.05 + 1e-9
     middle = len(msg.points) // 2
     point = msg.points[middle]
-    assert point.velocities[0].linear.x == pytest.approx(trajectory.velocities[middle][0])
-    assert point.accelerations[0].linear.z == pytest.approx(
-        trajectory.accelerations[middle][2])
-    assert duration_to_seconds(point.time_from_start) == pytest.approx(
-        trajectory.times[middle], abs=1e-9)
+    state = trajectory.state_at(times[middle])
+    position = point.transforms[0].translation
+    assert [position.x, position.y, position.z] == pytest.approx(state.position[0].tolist())
+    assert point.velocities[0].linear.x == pytest.approx(state.velocity[0][0])
+    assert point.velocities[0].angular.z == pytest.approx(state.yaw_rate[0])
+    assert point.accelerations[0].linear.z == pytest.approx(state.acceleration[0][2])
+    rotation = point.transforms[0].rotation
+    assert 2.0 * np.arctan2(rotation.z, rotation.w) == pytest.approx(
+        np.angle(np.exp(1j * state.yaw[0])))
+    # A longer period gives fewer points of the same reference.
+    coarse = conv.plan_to_trajectory(plan_result, 'map', 0, sample_period=0.5)
+    assert len(coarse.points) < len(msg.points) / 5
 
 
 def test_plan_diagnostics_carry_code_and_key_values(plan_result):

@@ -15,6 +15,7 @@ from typing import Any, Dict, Optional, Sequence, Tuple
 
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped
+from helpers.ros_messages import duration_to_seconds
 from nav_msgs.msg import Odometry, Path
 import numpy as np
 import pytest
@@ -193,7 +194,18 @@ def test_plan_keeps_gamma_from_every_obstacle(planner):
     trajectory = planner.trajectories.wait_for(
         lambda m: conv.time_to_ns(m.header.stamp) == stamp, 5.0)
     assert len(unsmoothed.poses) >= 2
-    assert len(trajectory.points) == len(path.poses)
+    # The trajectory: a point every trajectory_sample_period (0.05 s) of the same flight, from
+    # the start at rest to the goal at rest, keeping gamma too.
+    times = np.array([duration_to_seconds(p.time_from_start) for p in trajectory.points])
+    assert times[0] == 0.0 and np.allclose(np.diff(times)[:-1], 0.05, atol=1e-9)
+    assert times[-1] == pytest.approx(float(values['duration_s']), abs=1e-3)
+    positions = np.array([[p.transforms[0].translation.x, p.transforms[0].translation.y,
+                           p.transforms[0].translation.z] for p in trajectory.points])
+    assert np.allclose(positions[0], START) and np.allclose(positions[-1], GOAL)
+    assert scene_obstacles().distance(positions).min() >= GAMMA - 1e-9
+    for end in (trajectory.points[0], trajectory.points[-1]):
+        velocity = end.velocities[0].linear
+        assert (velocity.x, velocity.y, velocity.z) == pytest.approx((0.0, 0.0, 0.0), abs=1e-9)
 
 
 def test_late_subscriber_gets_the_last_plan(planner):

@@ -113,7 +113,7 @@ def test_html_view_renders_in_headless_chromium(tmp_path):
 
 
 @pytest.mark.parametrize('arguments, message', [
-    ([], 'plot needs -o PNG, --html FILE or both'),
+    ([], 'plot needs -o PNG, --html FILE, --profile PNG or more'),
 ])
 def test_plot_needs_an_output(arguments, message):
     executable = shutil.which('uav-plan')

@@ -329,7 +329,8 @@ def test_the_existing_flags_keep_their_names():
     flags = {entry.flag for entry in PLANNER_SETTINGS if entry.flag}
     assert {'--resolution', '--safety-margin', '--adaptive-threshold', '--smoothing',
             '--no-shortcut', '--max-planning-time', '--max-voxels', '--search-weight',
-            '--map-downsample'} == flags
+            '--map-downsample', '--max-jerk', '--max-tilt', '--max-thrust-to-weight',
+            '--max-yaw-rate', '--yaw-mode', '--vehicle-radius', '--tracking-margin'} == flags
     args = _parser().parse_args(['plan', 'scene.yaml', '--no-shortcut', '--max-voxels', '7',
                                  '--map-downsample', '0.5'])
     assert (args.shortcut, args.max_voxels, args.map_downsample) == (False, 7, 0.5)

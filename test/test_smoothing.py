@@ -11,13 +11,14 @@ from pathlib import Path
 from helpers.scenes import csgraph_path, random_scene, SEEDS
 import numpy as np
 import pytest
-from scipy.interpolate import CubicSpline
+from scipy.interpolate import CubicSpline, PPoly
 import yaml
 
 from uav_global_planner.core.errors import InvalidInputError, NoValidPathError
 from uav_global_planner.core.grid import VoxelGrid
 from uav_global_planner.core.inflation import blocked_mask
 from uav_global_planner.core.obstacles import Box, ObstacleSet, PointSet, Sphere
+from uav_global_planner.core.repair import start_spline
 from uav_global_planner.core.result import polyline_length
 from uav_global_planner.core.shortcut import shortcut_path
 from uav_global_planner.core.smoothing import smooth_path, SmoothedPath
@@ -422,3 +423,189 @@ def test_paper_scenes_smoothed_shorter_than_raw(name):
     for mode in ('index', 'none'):
         check_smoothed(smooth_path(raw, obstacles, gamma, delta, mode=mode), raw, obstacles,
                        gamma, delta)
+
+
+# ----------------------------------------------------------------------------------------------
+# Continuing a motion: start tangent and curvature
+# ----------------------------------------------------------------------------------------------
+
+def random_start(rng: np.random.Generator, max_curvature: float = 0.5):
+    """A random unit tangent and a random curvature vector normal to it [1/m]."""
+    tangent = rng.normal(size=3)
+    tangent /= np.linalg.norm(tangent)
+    bend = rng.normal(size=3)
+    bend -= np.dot(bend, tangent) * tangent
+    bend *= rng.uniform(0.0, max_curvature) / np.linalg.norm(bend)
+    return tangent, bend
+
+
+def check_start(smoothed: SmoothedPath, tangent: np.ndarray, bend: np.ndarray) -> None:
+    """The curve leaves the start with this tangent and curvature, without a stop."""
+    assert smoothed.start_kept is True
+    assert 0 not in smoothed.stop_points
+    assert 0.0 not in smoothed.curve.stop_arc_length_m
+    assert np.linalg.norm(smoothed.tangents[0] - tangent) <= 1e-9
+    assert np.linalg.norm(smoothed.curvature_vectors[0] - bend) <= 1e-9 * (1.0 + np.linalg.norm(
+        bend))
+    t, k = smoothed.curve.derivatives(np.zeros(1))
+    assert np.linalg.norm(t[0] - tangent) <= 1e-9
+    assert np.linalg.norm(k[0] - bend) <= 1e-9 * (1.0 + np.linalg.norm(bend))
+    # One-sided differences of positions agree (the curve, not only the samples); their
+    # leading error terms cancelled (Richardson).
+    h = 1e-3
+    p = smoothed.curve.evaluate(h * np.arange(5.0))
+    slope = (4.0 * (-3 * p[0] + 4 * p[1] - p[2]) / (2 * h)
+             - (-3 * p[0] + 4 * p[2] - p[4]) / (4 * h)) / 3.0
+    second = 2.0 * (p[0] - 2 * p[1] + p[2]) / h ** 2 - (p[0] - 2 * p[2] + p[4]) / (2 * h) ** 2
+    assert np.allclose(slope, tangent, atol=1e-5)
+    assert np.allclose(second, bend, atol=1e-3 * (1.0 + np.linalg.norm(bend))), (second, bend)
+
+
+def test_start_spline_meets_its_conditions():
+    """The clamped run: start point, both derivatives, every later knot but the first, C2."""
+    rng = np.random.default_rng(7)
+    for count in (2, 3, 4, 9):
+        t = np.r_[0.0, np.cumsum(rng.uniform(0.3, 2.0, count - 1))]
+        points = rng.uniform(-50.0, 50.0, size=(count, 3)) + 1e4
+        first, second = rng.normal(size=3), rng.normal(size=3)
+        coef = start_spline(t, points, first, second)
+        spline = PPoly(coef, t)
+        assert np.allclose(spline(t[0], 1), first, rtol=0, atol=1e-10)
+        assert np.allclose(spline(t[0], 2), second, rtol=0, atol=1e-9)
+        assert np.allclose(spline(t[0]), points[0], rtol=0, atol=1e-9)
+        later = np.r_[0, np.arange(2, count)] if count > 2 else np.array([0, 1])
+        assert np.allclose(spline(t[later]), points[later], rtol=0, atol=1e-8)
+        # C2 at every interior knot: each piece's end meets the next piece's start.
+        h = np.diff(t)[:-1]
+        for order in (0, 1, 2):
+            ends = np.array([np.polyval(np.polyder(coef[:, j, axis], order), h[j])
+                             for j in range(count - 2) for axis in range(3)])
+            starts = np.array([np.polyval(np.polyder(coef[:, j + 1, axis], order), 0.0)
+                               for j in range(count - 2) for axis in range(3)])
+            assert np.allclose(ends, starts, rtol=0, atol=1e-8 * 10 ** order), (count, order)
+
+
+def test_random_scenes_continue_the_start_motion(scenes):
+    """Random certified curves from random moving starts keep the start state and the margin."""
+    rng = np.random.default_rng(19)
+    kept = total = 0
+    for seed, grid, obstacles, gamma, path in scenes[::3]:
+        delta = grid.resolution
+        mode = ('chord', 'index')[seed % 2]
+        tangent, bend = random_start(rng)
+        if seed % 5:
+            # Mostly into the box: a start heading out of it near a face cannot be kept.
+            near_low = path[0] - grid.bounds_min < 1.5
+            near_high = grid.bounds_max - path[0] < 1.5
+            flip = (near_low & (tangent < 0)) | (near_high & (tangent > 0))
+            tangent[flip] *= -1.0
+            bend[flip] *= -1.0
+            bend -= np.dot(bend, tangent) * tangent
+        options = dict(mode=mode, bounds=(grid.bounds_min, grid.bounds_max),
+                       start_tangent=tangent, start_curvature=bend)
+        if seed % 4 == 0:
+            options['start_lead_in'] = float(rng.uniform(0.5, 4.0))
+        try:
+            smoothed = smooth_path(path, obstacles, gamma, delta, **options)
+        except NoValidPathError:
+            continue
+        total += 1
+        check_smoothed(smoothed, path, obstacles, gamma, delta)
+        if smoothed.start_kept:
+            kept += 1
+            check_start(smoothed, tangent, bend)
+        else:
+            assert smoothed.start_kept is False and smoothed.stop_points[0] == 0
+    # Starts near a face of the box heading out of it cannot be kept; most others can.
+    assert total >= 60 and kept >= 0.75 * total, (kept, total)
+
+
+def test_a_start_heading_away_from_the_goal_turns_without_stopping():
+    delta, gamma = 0.5, 0.3
+    obstacles = ObstacleSet([Sphere([5.0, 0.0, 2.0], 1.0)])
+    path = np.array([[0.0, 0.0, 2.0], [2.0, 1.0, 2.0], [4.0, 2.0, 2.0], [6.0, 2.0, 2.0],
+                     [8.0, 1.0, 2.0], [10.0, 0.0, 2.0]])
+    box = (np.array([-20.0, -20.0, 0.0]), np.array([20.0, 20.0, 10.0]))
+    for mode in ('chord', 'index'):
+        for tangent, bend in (([-1.0, 0.0, 0.0], [0.0, 0.3, 0.0]), ([0.0, 0.0, 1.0], [0.0] * 3),
+                              ([0.6, 0.8, 0.0], [-0.16, 0.12, 0.0])):
+            tangent, bend = np.array(tangent), np.array(bend)
+            smoothed = smooth_path(path, obstacles, gamma, delta, mode=mode, bounds=box,
+                                   start_tangent=tangent, start_curvature=bend,
+                                   start_lead_in=3.0)
+            check_smoothed(smoothed, path, obstacles, gamma, delta)
+            check_start(smoothed, tangent, bend)
+            # It follows the start's osculating circle over the lead-in (within centimetres in
+            # chord mode; index splines swing wider).
+            kappa = float(np.linalg.norm(bend))
+            s = np.array([0.5, 1.0, 2.0])
+            if kappa > 0.0:
+                circle = (path[0] + np.outer(np.sin(kappa * s) / kappa, tangent)
+                          + np.outer((1.0 - np.cos(kappa * s)) / kappa, bend / kappa))
+            else:
+                circle = path[0] + np.outer(s, tangent)
+            apart = np.linalg.norm(smoothed.curve.evaluate(s) - circle, axis=1)
+            assert apart.max() < (0.03 if mode == 'chord' else 0.1), apart
+
+
+def test_a_start_toward_an_obstacle_is_repaired_and_kept():
+    """Heading past a sphere that the spline would cut: repaired with knots, start kept."""
+    delta, gamma = 0.5, 0.3
+    obstacles = ObstacleSet([Sphere([2.0, 1.4, 1.0], 1.0)])
+    path = np.array([[0.0, 0.0, 1.0], [4.0, 0.0, 1.0], [4.0, 4.0, 1.0]])
+    tangent, bend = np.array([1.0, 0.0, 0.0]), np.array([0.0, 0.2, 0.0])
+    smoothed = smooth_path(path, obstacles, gamma, delta, start_tangent=tangent,
+                           start_curvature=bend, start_lead_in=2.0)
+    check_smoothed(smoothed, path, obstacles, gamma, delta)
+    check_start(smoothed, tangent, bend)
+
+
+def test_a_start_that_cannot_be_continued_is_reported_and_starts_from_rest():
+    """Flying into a wall half a millimetre beyond the margin: no certified curve keeps the
+    motion (further away, a sharp enough turn would, however fast it would have to be flown)."""
+    delta, gamma = 0.5, 0.3
+    obstacles = ObstacleSet([Box([0.3005, -5.0, -5.0], [1.0, 5.0, 5.0])])
+    path = np.array([[0.0, 0.0, 1.0], [0.0, 2.0, 1.0]])
+    tangent = np.array([1.0, 0.0, 0.0])
+    smoothed = smooth_path(path, obstacles, gamma, delta, start_tangent=tangent,
+                           start_curvature=np.array([0.0, 0.0, 0.0]))
+    assert smoothed.start_kept is False
+    assert smoothed.stop_points[0] == 0
+    check_smoothed(smoothed, path, obstacles, gamma, delta)
+    plain = smooth_path(path, obstacles, gamma, delta)
+    assert plain.start_kept is None
+    assert np.array_equal(plain.positions, smoothed.positions)
+
+
+def test_start_conditions_in_none_mode_and_without_them():
+    obstacles = ObstacleSet([Sphere([5.0, 5.0, 5.0], 1.0)])
+    path = np.array([[0.0, 0.0, 1.0], [3.0, 0.0, 1.0], [3.0, 3.0, 1.0]])
+    straight = smooth_path(path, obstacles, 0.2, 0.5, mode='none',
+                           start_tangent=[0.0, 2.0, 0.0])
+    check_start(straight, np.array([0.0, 1.0, 0.0]), np.zeros(3))
+    assert len(straight.stop_points) >= 2    # the corners stay stop points
+    bent = smooth_path(path, obstacles, 0.2, 0.5, mode='none', start_tangent=[0.0, 1.0, 0.0],
+                       start_curvature=[0.1, 0.0, 0.0])
+    assert bent.start_kept is False and bent.stop_points[0] == 0
+    rest = smooth_path(path, obstacles, 0.2, 0.5)
+    assert rest.start_kept is None and rest.stop_points[0] == 0
+    # The curvature's part along the tangent is dropped; the tangent is normalised.
+    tilted = smooth_path(path, obstacles, 0.2, 0.5, start_tangent=[0.0, 3.0, 0.0],
+                         start_curvature=[0.2, 5.0, 0.0])
+    check_start(tilted, np.array([0.0, 1.0, 0.0]), np.array([0.2, 0.0, 0.0]))
+    assert smooth_path(path[:1], obstacles, 0.2, 0.5, start_tangent=[1, 0, 0]).start_kept is False
+
+
+def test_invalid_start_conditions():
+    obstacles = ObstacleSet()
+    path = np.array([[0.0, 0.0, 1.0], [3.0, 0.0, 1.0]])
+    with pytest.raises(InvalidInputError, match='start_curvature needs start_tangent'):
+        smooth_path(path, obstacles, 0.2, 0.5, start_curvature=[0.0, 0.1, 0.0])
+    with pytest.raises(InvalidInputError, match='start_lead_in needs start_tangent'):
+        smooth_path(path, obstacles, 0.2, 0.5, start_lead_in=2.0)
+    with pytest.raises(InvalidInputError, match='start_tangent must be a nonzero vector'):
+        smooth_path(path, obstacles, 0.2, 0.5, start_tangent=[0.0, 0.0, 0.0])
+    with pytest.raises(InvalidInputError, match='start_tangent'):
+        smooth_path(path, obstacles, 0.2, 0.5, start_tangent=[np.nan, 0.0, 0.0])
+    with pytest.raises(InvalidInputError, match='start_lead_in'):
+        smooth_path(path, obstacles, 0.2, 0.5, start_tangent=[1, 0, 0], start_lead_in=-1.0)

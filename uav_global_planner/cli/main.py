@@ -22,6 +22,7 @@ from uav_global_planner.core.budget import PlanStage
 from uav_global_planner.core.config import ALGORITHMS, validate_config
 from uav_global_planner.core.errors import InvalidInputError
 from uav_global_planner.core.mapfiles import load_map_files
+from uav_global_planner.core.motion_limits import MotionLimits
 from uav_global_planner.core.obstacles import ObstacleSet
 from uav_global_planner.core.planner import Planner
 from uav_global_planner.core.scene import find_scene, load_scene, Scene
@@ -158,6 +159,8 @@ def _parser() -> argparse.ArgumentParser:
                       help='oblique, top and side views of the scene and the paths')
     plot.add_argument('--html', metavar='FILE',
                       help='an interactive 3D view (plotly) to rotate in a browser')
+    plot.add_argument('--profile', metavar='PNG',
+                      help='speed, acceleration, jerk and tilt against time, with the limits')
 
     add_export_command(commands, _add_scene_options)
     return parser
@@ -294,8 +297,8 @@ def _run_compare(args: argparse.Namespace, scene: Scene) -> int:
 
 def _run_plot(args: argparse.Namespace, scene: Scene) -> int:
     from uav_global_planner.cli.plotting import plot_scene_html, plot_scene_paths
-    if not args.output and not args.html:
-        raise InvalidInputError('plot needs -o PNG, --html FILE or both')
+    if not args.output and not args.html and not args.profile:
+        raise InvalidInputError('plot needs -o PNG, --html FILE, --profile PNG or more')
     result = _warm_planner(scene).plan(scene.start, scene.goal, args.algorithm, via=scene.via)
     print(format_summary(result))
     if not result.ok:
@@ -309,6 +312,11 @@ def _run_plot(args: argparse.Namespace, scene: Scene) -> int:
     if args.html:
         plot_scene_html(scene, paths, args.html, title=title)
         print(f'interactive view written to {args.html}')
+    if args.profile and result.trajectory is not None:
+        from uav_global_planner.cli.profile_plot import plot_profile
+        plot_profile(result.trajectory, MotionLimits.from_config(scene.config), args.profile,
+                     title=title)
+        print(f'time profile written to {args.profile}')
     return EXIT_OK
 
 

@@ -1,7 +1,7 @@
 """Turning planner results into JSON-ready dictionaries and text tables."""
 
 import math
-from typing import Any, Dict, List, Sequence
+from typing import Any, Dict, List, Optional, Sequence
 
 import numpy as np
 
@@ -59,7 +59,29 @@ def result_to_dict(result: PlanResult) -> Dict[str, Any]:
         'energy_wh': finite_or_none(energy.energy_wh if energy else math.nan),
         'climb_energy_wh': finite_or_none(energy.climb_energy_j / 3600.0 if energy
                                           else math.nan),
+        'planning_margin': finite_or_none(result.planning_margin),
+        'flight': flight_to_dict(result),
     }
+
+
+def flight_to_dict(result: PlanResult) -> Optional[Dict[str, Any]]:
+    """Flight time and the peaks the timed reference reaches (every 10 ms), or None."""
+    trajectory = result.trajectory
+    if trajectory is None:
+        return None
+    peaks = trajectory.peaks()
+    return {'flight_time_s': finite_or_none(trajectory.duration_s),
+            'peak_speed_horizontal': peaks.speed_horizontal,
+            'peak_speed_vertical': peaks.speed_vertical,
+            'peak_accel_horizontal': peaks.accel_horizontal,
+            'peak_accel_vertical': peaks.accel_vertical,
+            'peak_jerk': peaks.jerk, 'peak_tilt_deg': peaks.tilt_deg,
+            'peak_thrust_to_weight': peaks.thrust_to_weight,
+            'peak_yaw_rate': peaks.yaw_rate, 'peaks_step_s': peaks.step_s,
+            'start_velocity': [float(v) for v in result.start_velocity],
+            'start_acceleration': [float(v) for v in result.start_acceleration],
+            'handover_velocity_error': finite_or_none(result.handover_velocity_error),
+            'handover_accel_error': finite_or_none(result.handover_accel_error)}
 
 
 def format_table(headers: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
@@ -86,4 +108,13 @@ def format_summary(result: PlanResult) -> str:
             f'trajectory: {result.duration_s:.2f} s; grid build {result.grid_build_time_s:.3f} s, '
             f'smoothing + timing {result.smoothing_time_s * 1e3:.2f} ms',
         ]
+        flight = flight_to_dict(result)
+        if flight is not None:
+            lines.append(
+                f"limits reached: speed {flight['peak_speed_horizontal']:.2f} / "
+                f"{flight['peak_speed_vertical']:.2f} m/s (h/v), acceleration "
+                f"{flight['peak_accel_horizontal']:.2f} / {flight['peak_accel_vertical']:.2f} "
+                f"m/s^2, jerk {flight['peak_jerk']:.2f} m/s^3, tilt "
+                f"{flight['peak_tilt_deg']:.1f} deg, thrust/weight "
+                f"{flight['peak_thrust_to_weight']:.2f}")
     return '\n'.join(lines)

@@ -50,6 +50,13 @@ class PlannerConfig:
     max_speed_vertical: float = _DEFAULT['max_speed_vertical']
     max_accel_horizontal: float = _DEFAULT['max_accel_horizontal']
     max_accel_vertical: float = _DEFAULT['max_accel_vertical']
+    max_jerk: float = _DEFAULT['max_jerk']
+    max_tilt: float = _DEFAULT['max_tilt']
+    max_thrust_to_weight: float = _DEFAULT['max_thrust_to_weight']
+    max_yaw_rate: float = _DEFAULT['max_yaw_rate']
+    yaw_mode: str = _DEFAULT['yaw_mode']
+    vehicle_radius: float = _DEFAULT['vehicle_radius']
+    tracking_margin: float = _DEFAULT['tracking_margin']
     climb_weight: float = _DEFAULT['climb_weight']
     descent_weight: float = _DEFAULT['descent_weight']
     vehicle_mass: float = _DEFAULT['vehicle_mass']
@@ -59,10 +66,21 @@ class PlannerConfig:
         """Return a validated copy with some fields replaced."""
         return validate_config(replace(self, **changes))
 
+    @property
+    def planning_margin(self) -> float:
+        """Clearance the reference curve keeps from every obstacle [m].
+
+        ``safety_margin + vehicle_radius + tracking_margin``: obstacles are inflated and the
+        curve certified by it, so the body keeps gamma while the vehicle flies within
+        ``tracking_margin`` of the reference.
+        """
+        return float(self.safety_margin) + float(self.vehicle_radius) \
+            + float(self.tracking_margin)
+
     def grid_key(self) -> tuple:
         """The fields that define the inflated grid; a change means a rebuild."""
         return (tuple(self.bounds_min), tuple(self.bounds_max), self.resolution,
-                self.safety_margin)
+                self.planning_margin)
 
 
 def validate_config(config: PlannerConfig) -> PlannerConfig:

@@ -35,7 +35,8 @@ class PathCurve:
         Arc length at the start of each piece, then the total length [m].
     stop_arc_length_m : numpy.ndarray
         Arc lengths of the points where the curve is not C2 (polyline corners, junctions) and
-        the time parameterisation stops, start and goal included [m].
+        the time parameterisation stops, the goal included, and the start unless the curve
+        continues a motion [m].
     """
 
     def __init__(self, pieces: Pieces, iv_piece: np.ndarray, iv_ta: np.ndarray,
@@ -97,6 +98,28 @@ class PathCurve:
         """
         x = self._parameter(s)
         return arc_derivatives(self._chain(x, 1), self._chain(x, 2))
+
+    def derivatives3(self, s) -> Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Points and the first three derivatives with respect to arc length at ``s`` [m].
+
+        Returns the point [m], the unit tangent dc/ds [-], the curvature vector d2c/ds2 [1/m]
+        and its derivative d3c/ds3 [1/m^2], each shape (M, 3). At a stop point the piece after
+        it is used.
+        """
+        x = self._parameter(s)
+        d1, d2, d3 = self._chain(x, 1), self._chain(x, 2), self._chain(x, 3)
+        sigma = np.linalg.norm(d1, axis=1)
+        sigma = np.where(sigma > 0, sigma, np.nan)[:, None]
+        # d/ds = (1/sigma) d/dx; sigma' and sigma'' are derivatives of |c'| in the parameter.
+        dot12 = np.sum(d1 * d2, axis=1)[:, None]
+        sigma1 = dot12 / sigma
+        sigma2 = (np.sum(d2 * d2, axis=1)[:, None] + np.sum(d1 * d3, axis=1)[:, None]) / sigma \
+            - dot12 ** 2 / sigma ** 3
+        tangent = d1 / sigma
+        normal = d2 / sigma ** 2 - d1 * sigma1 / sigma ** 3
+        third = (d3 / sigma ** 3 - 3.0 * d2 * sigma1 / sigma ** 4 - d1 * sigma2 / sigma ** 4
+                 + 3.0 * d1 * sigma1 ** 2 / sigma ** 5)
+        return self._chain(x), tangent, normal, third
 
 
 def arc_derivatives(d1: np.ndarray, d2: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:

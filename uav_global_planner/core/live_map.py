@@ -1112,7 +1112,7 @@ class LiveMapBuilder:
         if regrid:
             grid = VoxelGrid.from_bounds(config.bounds_min, config.bounds_max,
                                          config.resolution, config.max_voxels)
-            self._buffers = MaskBuffers(grid, config.safety_margin)
+            self._buffers = MaskBuffers(grid, config.planning_margin)
             self._fallback_buffers = None
             self._grid_key = grid_key
         buffers = self._buffers

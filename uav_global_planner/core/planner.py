@@ -29,14 +29,17 @@ from uav_global_planner.core.errors import (GoalOccupiedError, GoalOutsideMapErr
                                             PlanningError, StartOccupiedError,
                                             StartOutsideMapError)
 from uav_global_planner.core.grid import as_point, VoxelGrid
+from uav_global_planner.core.handover import Handover
 from uav_global_planner.core.inflation import blocked_mask, Mask
+from uav_global_planner.core.motion_limits import MotionLimits
 from uav_global_planner.core.obstacles import ObstacleSet
 from uav_global_planner.core.result import LegResult, PlanResult, polyline_length, Trajectory
 from uav_global_planner.core.search import SearchWorkspace
-from uav_global_planner.core.smoothing import smooth_path
+from uav_global_planner.core.smoothing import smooth_path, SmoothedPath
 from uav_global_planner.core.sparse_grid import first_free_node
 from uav_global_planner.core.status import PlanStatus
 from uav_global_planner.core.timing import time_parameterize
+from uav_global_planner.core.tracking import tracking_speed_cap
 
 # Extra inflation of the fallback grid: a segment between two 26-neighbour nodes lies within
 # delta * sqrt(3) / 2 of one of them and the obstacle distance is 1-Lipschitz, so on a grid
@@ -197,7 +200,7 @@ class Planner:
         grid = self._make_grid()
         if tuple(blocked.shape) != tuple(grid.shape) or blocked.dtype != np.bool_:
             return False
-        self._inflated = _InflatedGrid(grid, obstacles, self._config.safety_margin, blocked)
+        self._inflated = _InflatedGrid(grid, obstacles, self._config.planning_margin, blocked)
         if (fallback is not None and tuple(fallback.shape) == tuple(grid.shape)
                 and fallback.dtype == np.bool_):
             self._fallback = _InflatedGrid(grid, obstacles, fallback_margin(self._config),
@@ -225,7 +228,7 @@ class Planner:
             Checked against these instead of the planner's.
         """
         obstacles = self._obstacles if obstacles is None else obstacles
-        return certify_polyline(obstacles, positions, self._config.safety_margin,
+        return certify_polyline(obstacles, positions, self._config.planning_margin,
                                 self._config.resolution).clear
 
     def plan_is_clear(self, result: PlanResult, position=None,
@@ -248,12 +251,14 @@ class Planner:
         ClearanceVerdict
         """
         obstacles = self._obstacles if obstacles is None else obstacles
-        return certify_plan(result, obstacles, self._config.safety_margin,
+        return certify_plan(result, obstacles, self._config.planning_margin,
                             self._config.resolution, position)
 
     def plan(self, start, goal, algorithm: Optional[str] = None, *, via=(),
              cancel: Optional[Callable[[], bool]] = None,
-             progress: Optional[ProgressCallback] = None) -> PlanResult:
+             progress: Optional[ProgressCallback] = None, start_velocity=None,
+             start_acceleration=None, start_yaw: Optional[float] = None,
+             start_path=None) -> PlanResult:
         """Plan from ``start`` to ``goal``, through ``via`` in order.
 
         Parameters
@@ -271,6 +276,18 @@ class Planner:
         progress : callable, optional
             ``progress(stage, elapsed_s, budget_s)``, called once the plan has run 1 s, at each
             stage change and every second (see :mod:`uav_global_planner.core.budget`).
+        start_velocity, start_acceleration : array_like, shape (3,), optional
+            The vehicle's state at ``start`` when it is moving [m/s], [m/s^2] (ENU): the curve
+            leaves ``start`` along the velocity with the curvature that the acceleration's
+            normal part needs, and the reference starts with that speed and tangential
+            acceleration, so a replan continues the motion without a jump. From rest (the
+            default, or a speed below :data:`HANDOVER_MIN_SPEED`) the plan starts at rest.
+        start_yaw : float, optional
+            Heading at the start [rad] (ENU); the heading profile turns from it.
+        start_path : array_like, shape (N, 3), optional
+            Where the plan in force goes on from ``start`` [m] (its reference positions ahead):
+            with a moving start the new curve follows it for a braking distance first, so the
+            vehicle's speed fits the curve it flies next.
 
         Returns
         -------
@@ -287,10 +304,14 @@ class Planner:
         base: Dict[str, Any] = dict(algorithm=str(name), start=start_point, goal=goal_point,
                                     resolution=config.resolution,
                                     safety_margin=config.safety_margin,
-                                    adaptive_threshold=config.adaptive_threshold)
+                                    adaptive_threshold=config.adaptive_threshold,
+                                    planning_margin=config.planning_margin)
         legs: List[LegResult] = []
         try:
-            return self._plan(start, goal, via, name, base, budget, legs)
+            handover = Handover.of(start_velocity, start_acceleration, start_yaw, start_path)
+            base.update(start_velocity=handover.velocity,
+                        start_acceleration=handover.acceleration)
+            return self._plan(start, goal, via, name, base, budget, legs, handover)
         except PlanningError as error:
             return PlanResult(status=error.status, message=str(error), **base,
                               expanded_nodes=error.expanded_nodes
@@ -299,7 +320,7 @@ class Planner:
                               total_time_s=budget.elapsed_s)
 
     def _plan(self, start, goal, via, name: str, base: dict, budget: PlanBudget,
-              legs: List[LegResult]) -> PlanResult:
+              legs: List[LegResult], handover: 'Handover') -> PlanResult:
         config = self._config
         if name not in ALGORITHMS:
             raise InvalidInputError(
@@ -322,7 +343,7 @@ class Planner:
         smoothing_started = time.perf_counter()
         waypoints, keep = _waypoints(paths, stops)
         try:
-            smoothed = self._smooth(waypoints, keep, budget)
+            smoothed = self._smooth(waypoints, keep, budget, handover)
         except NoValidPathError as first_error:
             # The grid path hugs the inflated obstacles so closely that no curve through it keeps
             # gamma: plan once more on the conservative grid, whose polyline provably does.
@@ -349,12 +370,15 @@ class Planner:
                                        expanded_nodes=expanded) from None
             budget.enter(PlanStage.SMOOTHING)
             waypoints, keep = _waypoints(paths, stops)
-            smoothed = self._smooth(waypoints, keep, budget)
+            smoothed = self._smooth(waypoints, keep, budget, handover)
             build_time += fallback.unreported_build_time()
         budget.enter(PlanStage.TIMING)
-        trajectory = time_parameterize(smoothed, config.max_speed_horizontal,
-                                       config.max_speed_vertical, config.max_accel_horizontal,
-                                       config.max_accel_vertical)
+        timing = time_parameterize(
+            smoothed, MotionLimits.from_config(config),
+            start=handover.motion_on(smoothed), speed_cap=self._tracking_cap(smoothed),
+            yaw_mode=config.yaw_mode, initial_yaw=handover.yaw)
+        trajectory = timing.trajectory
+        velocity_error, accel_error = handover.error(trajectory)
         budget.check()
         smoothing_time = time.perf_counter() - smoothing_started
         path = np.vstack([paths[0]] + [p[1:] for p in paths[1:]])
@@ -376,6 +400,7 @@ class Planner:
             repaired_stretches=tuple(smoothed.repaired_stretches),
             smoothing_time_s=smoothing_time, via=via_points, legs=tuple(legs),
             curve=smoothed.curve, total_time_s=budget.elapsed_s,
+            handover_velocity_error=velocity_error, handover_accel_error=accel_error,
             energy=estimate_energy(trajectory, VehicleModel(config.vehicle_mass,
                                                             config.hover_power)))
 
@@ -430,19 +455,32 @@ class Planner:
                                       descent_weight=config.descent_weight,
                                       checkpoint=None if budget is None else budget.check)
 
+    def _tracking_cap(self, smoothed: SmoothedPath) -> Optional[np.ndarray]:
+        """Speed cap at each sample that keeps the predicted tracking error in the room
+        left, or None without a tracking margin."""
+        config = self._config
+        if not config.tracking_margin > 0.0:
+            return None
+        return tracking_speed_cap(smoothed.positions, self._obstacles, config)
+
     def _smooth(self, waypoints: np.ndarray, keep: Sequence[int] = (),
-                budget: Optional[PlanBudget] = None):
+                budget: Optional[PlanBudget] = None, handover: Optional['Handover'] = None):
         config = self._config
         grid = self._primary().grid
-        return smooth_path(waypoints, self._obstacles, config.safety_margin, config.resolution,
+        tangent, curvature, lead_in, guide = (
+            (None, None, None, None) if handover is None
+            else handover.curve_start(MotionLimits.from_config(config)))
+        return smooth_path(waypoints, self._obstacles, config.planning_margin, config.resolution,
                            shortcut=config.shortcut, mode=config.smoothing,
                            sample_spacing=config.sample_spacing, index_step=config.index_step,
                            bounds=(grid.bounds_min, grid.bounds_max), keep=keep,
+                           start_tangent=tangent, start_curvature=curvature,
+                           start_lead_in=lead_in, start_lead_in_path=guide,
                            checkpoint=None if budget is None else budget.check)
 
     def _check_endpoints(self, inflated: _InflatedGrid, start: np.ndarray, goal: np.ndarray):
         grid = inflated.grid
-        gamma = self._config.safety_margin
+        gamma = self._config.planning_margin
         if not grid.contains(start):
             raise StartOutsideMapError(
                 f'start {start.tolist()} is outside the bounds {grid.bounds_min.tolist()} .. '
@@ -480,7 +518,7 @@ class Planner:
     def _primary(self) -> _InflatedGrid:
         if self._inflated is None:
             self._inflated = _InflatedGrid(self._make_grid(), self._obstacles,
-                                           self._config.safety_margin)
+                                           self._config.planning_margin)
         return self._inflated
 
     def _conservative(self) -> _InflatedGrid:
@@ -503,7 +541,7 @@ class Planner:
 def fallback_margin(config: PlannerConfig) -> float:
     """Margin of the conservative fallback grid [m]: gamma + delta * sqrt(3) / 2, on which the
     raw polyline itself keeps gamma."""
-    return config.safety_margin + _LIPSCHITZ_FACTOR * config.resolution
+    return config.planning_margin + _LIPSCHITZ_FACTOR * config.resolution
 
 
 def certify_plan(result: PlanResult, obstacles: ObstacleSet, safety_margin: float,

@@ -4,7 +4,9 @@ The third step of :mod:`uav_global_planner.core.smoothing`. The curve is describ
 :class:`Layout` over the shortcut polyline: knots named by their polyline arc length sigma, and
 for each polyline gap whether the spline covers it or it is drawn straight. :func:`build_chain`
 fits one C2 not-a-knot :class:`~scipy.interpolate.CubicSpline` per run of spline gaps and one
-straight piece per straight gap; :func:`check_chain` certifies the clearance of every piece
+straight piece per straight gap (the run at the start of a curve that continues a motion is
+clamped to the given tangent and curvature instead, :func:`start_spline`);
+:func:`check_chain` certifies the clearance of every piece
 (:func:`~uav_global_planner.core.clearance.certify_pieces`) and checks the bounds box exactly.
 :func:`repair_curve` repeats both, adding polyline knots to each violating piece (or, for a
 piece shorter than ``delta / 4``, drawing its polyline gap straight) until no piece violates.
@@ -63,6 +65,8 @@ class Layout:
     bound: np.ndarray       # (K - 1,) its certified clearance bound [m]
     line: np.ndarray        # (K - 1,) gap drawn as a straight segment
     knots: np.ndarray       # sorted sigma of every knot [m]
+    # Unit tangent and curvature vector [1/m] the curve must start with (None: free start).
+    start: Optional[Tuple[np.ndarray, np.ndarray]] = None
 
     def points(self, sigma: np.ndarray) -> np.ndarray:
         """Polyline points at arc lengths ``sigma`` [m]; vertices exactly."""
@@ -138,9 +142,14 @@ def build_chain(layout: Layout, mode: str) -> Chain:
                 # Knots lie on the polyline and every vertex is a knot, so the chord between
                 # consecutive knots is their sigma difference.
                 t = knots - knots[0]
-            spline = CubicSpline(t, points, bc_type='not-a-knot')
+            if gap == 0 and layout.start is not None:
+                # Parameter speed of the first knot interval (1 for chord, its length for index).
+                speed = (knots[1] - knots[0]) / (t[1] - t[0])
+                tangent, curvature = layout.start
+                coefs.append(start_spline(t, points, speed * tangent, speed ** 2 * curvature))
+            else:
+                coefs.append(CubicSpline(t, points, bc_type='not-a-knot').c)
             pieces = len(knots) - 1
-            coefs.append(spline.c)
             hs.append(np.diff(t))
             sigs.append(np.stack([knots[:-1], knots[1:]], axis=1))
             gaps.append(layout.gap_of(knots[:-1]))
@@ -153,6 +162,59 @@ def build_chain(layout: Layout, mode: str) -> Chain:
                  np.concatenate(sigs).astype(np.float64), np.concatenate(gaps).astype(np.int64),
                  np.concatenate(spans).astype(np.int64), np.concatenate(lines).astype(bool),
                  np.concatenate(trusted).astype(bool))
+
+
+def start_spline(t: np.ndarray, points: np.ndarray, first: np.ndarray,
+                 second: np.ndarray) -> np.ndarray:
+    """Coefficients of a C2 cubic spline that starts with given first and second derivatives.
+
+    The spline passes through ``points[0]`` with ``c'(t[0]) = first`` and ``c''(t[0]) =
+    second``, through every later point but ``points[1]``, and ends not-a-knot, as the other
+    runs do. Three conditions at the start and one at the end leave one point free: the first
+    knot after the start (on a straight lead-in along the start tangent it moves by about the
+    bend the curvature asks for over one knot interval). With two knots the spline is the one
+    cubic of the four conditions (start point, both derivatives, end point).
+
+    The spline is linear in its data, so the free knot is found exactly: fit with the knot where
+    it lies, then move it by the missing second derivative over the weight of that knot on
+    c''(t[0]) (one more such step removes the rounding).
+
+    Parameters
+    ----------
+    t : numpy.ndarray, shape (n,)
+        Strictly increasing knot parameters, n >= 2.
+    points : numpy.ndarray, shape (n, 3)
+        Knot points [m]; ``points[1]`` is only the first guess when n >= 3.
+    first, second : numpy.ndarray, shape (3,)
+        dc/dt [m / unit] and d2c/dt2 [m / unit^2] at ``t[0]``.
+
+    Returns
+    -------
+    numpy.ndarray, shape (4, n - 1, 3)
+        Coefficients in the layout of ``CubicSpline.c`` (highest power first).
+    """
+    origin = points[0]
+    local = points - origin    # fitted near the origin: no rounding from large coordinates
+    if len(t) == 2:
+        h = t[1] - t[0]
+        coef = np.zeros((4, 1, 3))
+        coef[3, 0] = origin
+        coef[2, 0] = first
+        coef[1, 0] = 0.5 * second
+        coef[0, 0] = (local[1] - first * h - 0.5 * second * h * h) / h ** 3
+        return coef
+    unit = np.zeros(len(t))
+    unit[1] = 1.0
+    still: Any = ((1, np.zeros(())), 'not-a-knot')
+    clamped: Any = ((1, first), 'not-a-knot')
+    weight = 2.0 * CubicSpline(t, unit, bc_type=still).c[1, 0]
+    local = local.copy()
+    for _ in range(2):
+        spline = CubicSpline(t, local, bc_type=clamped)
+        local[1] += (second - 2.0 * spline.c[1, 0]) / weight
+    coef = CubicSpline(t, local, bc_type=clamped).c.copy()
+    coef[3] += origin
+    return coef
 
 
 def _bounds_violations(pieces: Pieces, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
@@ -289,7 +351,8 @@ def _on_bounds_face(layout: Layout, gap: int,
 
 
 def initial_layout(vertices: np.ndarray, certified: np.ndarray, bound: np.ndarray, mode: str,
-                   knot_gap: float) -> Layout:
+                   knot_gap: float,
+                   start: Optional[Tuple[np.ndarray, np.ndarray]] = None) -> Layout:
     """The layout before any repair: every gap covered by the spline (straight for ``'none'``).
 
     Parameters
@@ -302,6 +365,8 @@ def initial_layout(vertices: np.ndarray, certified: np.ndarray, bound: np.ndarra
         ``'chord'``, ``'index'`` or ``'none'``.
     knot_gap : float
         Largest knot spacing along the polyline for ``'chord'`` [m], > 0.
+    start : tuple of two numpy.ndarray of shape (3,), optional
+        Unit tangent and curvature vector (normal to it) [1/m] the spline must start with.
     """
     sigma = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(vertices, axis=0), axis=1))]
     knots = sigma
@@ -314,7 +379,7 @@ def initial_layout(vertices: np.ndarray, certified: np.ndarray, bound: np.ndarra
         knots = np.r_[sigma[owner] + np.diff(sigma)[owner] * (local / parts[owner]), sigma[-1]]
         knots[np.cumsum(parts) - parts] = sigma[:-1]
     return Layout(vertices, sigma, certified, bound, np.full(len(vertices) - 1, mode == 'none'),
-                  knots)
+                  knots, start)
 
 
 def repair_curve(layout: Layout, mode: str, obstacles: ObstacleSet, gamma: float, delta: float,

@@ -43,6 +43,10 @@ ALGORITHMS = ('dijkstra', 'astar', 'adaptive', 'octile', 'weighted')
 #: Spline parameterisations: chord length sampled in metres, or the paper's node index.
 SMOOTHING_MODES = ('chord', 'index', 'none')
 
+#: Heading of the timed reference: along the horizontal velocity, kept as at the start, or
+#: towards the goal.
+YAW_MODES = ('velocity', 'fixed', 'goal')
+
 
 class Kind(Enum):
     """Value type of a setting."""
@@ -360,6 +364,36 @@ PLANNER_SETTINGS: Tuple[Setting, ...] = (
     _speed_limit('max_speed_vertical', 'vertical', 'speed', 'm/s', 1.0),
     _speed_limit('max_accel_horizontal', 'horizontal', 'acceleration', 'm/s^2', 1.0),
     _speed_limit('max_accel_vertical', 'vertical', 'acceleration', 'm/s^2', 0.5),
+    Setting('max_jerk', Kind.FLOAT, 10.0, 'jerk limit',
+            'Largest norm of the jerk of the timed reference; its acceleration is continuous.',
+            'm/s^3', 0.0, 1.0e4, low_open=True, field='max_jerk', scene_key='planner.max_jerk',
+            flag='--max-jerk'),
+    Setting('max_tilt', Kind.FLOAT, 35.0, 'tilt limit',
+            'Largest tilt of the collective thrust the reference asks for (its acceleration '
+            'plus gravity) from the vertical.', 'deg', 0.0, 89.0, low_open=True,
+            field='max_tilt', scene_key='vehicle.max_tilt', flag='--max-tilt'),
+    Setting('max_thrust_to_weight', Kind.FLOAT, 2.0, 'thrust-to-weight limit',
+            'Largest collective thrust of the reference over the weight; keep it below the '
+            "vehicle's real ratio by the headroom its attitude control needs.", '', 1.0, 100.0,
+            low_open=True, field='max_thrust_to_weight',
+            scene_key='vehicle.max_thrust_to_weight', flag='--max-thrust-to-weight'),
+    Setting('max_yaw_rate', Kind.FLOAT, 0.785, 'yaw-rate limit',
+            'Largest yaw rate of the heading profile.', 'rad/s', 0.0, 100.0, low_open=True,
+            field='max_yaw_rate', scene_key='vehicle.max_yaw_rate', flag='--max-yaw-rate'),
+    Setting('yaw_mode', Kind.CHOICE, 'velocity', 'heading profile',
+            'One of velocity (along the horizontal direction of travel), fixed (the heading '
+            'at the start) or goal (towards the goal).', choices=YAW_MODES, field='yaw_mode',
+            scene_key='planner.yaw_mode', flag='--yaw-mode'),
+    Setting('vehicle_radius', Kind.FLOAT, 0.0, 'vehicle radius',
+            'Radius of a sphere around the body and rotors; the body, not the centre, keeps '
+            'gamma (obstacles are inflated by gamma + vehicle_radius + tracking_margin).',
+            'm', 0.0, 100.0, field='vehicle_radius', scene_key='vehicle.radius',
+            flag='--vehicle-radius'),
+    Setting('tracking_margin', Kind.FLOAT, 0.0, 'tracking margin',
+            'Room kept for the tracking error of the vehicle around the reference; where the '
+            'curve leaves less room, the reference slows so its predicted error fits.', 'm',
+            0.0, 100.0, field='tracking_margin', scene_key='vehicle.tracking_margin',
+            flag='--tracking-margin'),
     Setting('climb_weight', Kind.FLOAT, 1.0, 'climb weight',
             'Energy-aware step cost: a climbing grid step costs its length plus (weight - 1) '
             "times its rise; 1 gives the paper's geometric length (eq. 15).", '', 0.0, 100.0,

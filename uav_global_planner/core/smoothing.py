@@ -84,14 +84,44 @@ C2 (as a function of arc length too, since its speed never vanishes in practice)
 
 An optional ``bounds`` box (for example the grid bounds, whose floor is the ground) is enforced
 exactly as well: the extrema of each cubic piece are found analytically.
+
+Continuing a motion
+-------------------
+A replan in flight starts where the vehicle will be, moving: ``start_tangent`` and
+``start_curvature`` give the unit tangent T and the curvature vector K (d2c/ds2, normal to T) the
+curve must start with, so that position, velocity and acceleration continue without a jump (the
+time parameterisation supplies the speed). Three things change:
+
+- **Lead-in.** The start's osculating circle (tangent T, curvature K), at most a quarter turn of
+  it, is sampled every knot gap over ``start_lead_in`` metres (default one knot gap; about the
+  braking distance is right for a fast vehicle); the chords that certify (and stay inside the
+  bounds) become the first vertices of the polyline, kept by shortcutting. So the curve leaves
+  along the motion instead of being pulled at once towards a node path that may point
+  elsewhere.
+- **Clamped first run.** The spline of the first run of spline gaps starts with
+  ``c'(0) = v T`` and ``c''(0) = v**2 K`` (v the parameter speed of its first knot interval: 1 in
+  ``'chord'`` mode), and ends not-a-knot. Those are three conditions at the start, one more than
+  a cubic spline has room for, so its first knot after the start is not interpolated but placed
+  where the conditions put it (:func:`~uav_global_planner.core.repair.start_spline`); the curve
+  stays C2 there and everywhere else it was.
+- **No stop at the start.** The start is left out of :attr:`SmoothedPath.stop_points`.
+
+The result is certified and repaired as any curve. When the repair has to straighten the first
+gap, or no certified curve can be built this way (after a second try with the default
+lead-in), the curve is made from rest as without start conditions, and
+:attr:`SmoothedPath.start_kept` is False: the conditions are never dropped silently. In
+``'none'`` mode only a straight start (K = 0) can be kept.
 """
 
-from dataclasses import dataclass
-from typing import Callable, List, Optional, Sequence, Tuple
+from dataclasses import dataclass, replace
+import math
+from typing import Callable, List, NamedTuple, Optional, Sequence, Tuple
 
 import numpy as np
 
-from uav_global_planner.core.clearance import certificate_cap, check_margins, Pieces
+from uav_global_planner.core.clearance import (certificate_cap, check_margins,
+                                               FINEST_SPACING_FRACTION, Pieces, SEGMENT_SPACING,
+                                               segments_clear)
 from uav_global_planner.core.curve import (arc_derivatives, arc_length_at, interval_maxima,
                                            PathCurve, span_samples)
 from uav_global_planner.core.errors import InvalidInputError, NoValidPathError
@@ -100,14 +130,23 @@ from uav_global_planner.core.obstacles import ObstacleSet
 from uav_global_planner.core.repair import (BOUNDS_TOLERANCE, Chain, Check,
                                             DEFAULT_KNOT_SPACING_FACTOR,
                                             DEFAULT_KNOT_SPACING_MIN, initial_layout, Layout,
+                                            MIN_KNOT_GAP_FRACTION,
                                             repair_curve, RepairEvent)
 from uav_global_planner.core.result import polyline_length, RepairedStretch, RepairMethod
 from uav_global_planner.core.settings import check_setting
 from uav_global_planner.core.shortcut import (as_waypoints, dedupe_waypoints, kept_indices,
                                               shortcut_legs, vertex_indices)
 
+#: Largest turn of the start's osculating circle the lead-in follows [rad].
+LEAD_IN_MAX_TURN = math.pi / 2.0
+#: The curve's unit tangent and curvature vector [1/m] at the start must equal those asked for
+#: to this (relative) tolerance, or the start conditions count as not kept.
+START_TOLERANCE = 1e-9
+
 # Junctions whose tangents differ by less than this (1 - cos of the angle) are smooth.
 _SMOOTH_JUNCTION = 1e-12
+# A start curvature below this [1/m] is straight (a polyline can keep it).
+_STRAIGHT_START = 1e-12
 
 
 @dataclass(frozen=True, eq=False, kw_only=True)
@@ -137,8 +176,9 @@ class SmoothedPath:
     curvature : numpy.ndarray, shape (M,)
         Norm of ``curvature_vectors`` [1/m].
     stop_points : numpy.ndarray of int
-        Sample indices where the speed must be 0: the start, the goal, and every point where the
-        curve is not C1 (polyline corners, junctions of polyline and spline stretches).
+        Sample indices where the speed must be 0: the start (unless the curve continues a
+        motion, :attr:`start_kept`), the goal, and every point where the curve is not C1
+        (polyline corners, junctions of polyline and spline stretches).
     knots : numpy.ndarray, shape (P + 1, 3)
         Waypoints the final curve passes through, in order [m].
     length_m : float
@@ -160,6 +200,12 @@ class SmoothedPath:
         limits hold between samples too.
     curve : PathCurve
         Evaluator of the continuous curve by arc length.
+    start_kept : bool or None
+        None when no start conditions were given (the start is a stop point). True when the
+        curve continues the motion given: its unit tangent and curvature vector at arc length 0
+        are ``start_tangent`` and ``start_curvature`` and the start is no stop point. False
+        when they were given but no certified curve could keep them: the curve then starts
+        from rest (the start is a stop point), as without them.
     """
 
     raw_path: np.ndarray
@@ -182,6 +228,7 @@ class SmoothedPath:
     interval_tangent_max: np.ndarray
     interval_curvature_max: np.ndarray
     curve: PathCurve
+    start_kept: Optional[bool] = None
 
 
 def smooth_path(raw_path, obstacles: ObstacleSet, safety_margin: float, resolution: float, *,
@@ -189,7 +236,11 @@ def smooth_path(raw_path, obstacles: ObstacleSet, safety_margin: float, resoluti
                 index_step: float = 0.1, knot_spacing: Optional[float] = None,
                 bounds: Optional[Tuple[np.ndarray, np.ndarray]] = None,
                 keep: Sequence[int] = (),
-                checkpoint: Optional[Callable[[], None]] = None) -> SmoothedPath:
+                checkpoint: Optional[Callable[[], None]] = None,
+                start_tangent: Optional[np.ndarray] = None,
+                start_curvature: Optional[np.ndarray] = None,
+                start_lead_in: Optional[float] = None,
+                start_lead_in_path: Optional[np.ndarray] = None) -> SmoothedPath:
     """Shortcut, smooth and verify a node path; the returned curve keeps clearance >= gamma.
 
     Parameters
@@ -225,10 +276,28 @@ def smooth_path(raw_path, obstacles: ObstacleSet, safety_margin: float, resoluti
     checkpoint : callable, optional
         Called between shortcut jumps and repair rounds; it raises to abandon the work (a
         cancelled request, an exhausted time budget).
+    start_tangent : array_like, shape (3,), optional
+        Direction of travel at the start (ENU, any positive length; normalised): the curve
+        continues a motion instead of starting from rest. Its unit tangent dc/ds at arc length
+        0 is this direction, and the start is no stop point (see "Continuing a motion" in the
+        module docstring).
+    start_curvature : array_like, shape (3,), optional
+        Curvature vector d2c/ds2 at arc length 0 [1/m] (ENU), with ``start_tangent`` only; its
+        part along the tangent is dropped. Default zero.
+    start_lead_in : float, optional
+        Arc length the curve follows the start's osculating circle before it heads for the path
+        [m], > 0, with ``start_tangent`` only; default the knot spacing. About the braking
+        distance ``v**2 / (2 a)`` of the vehicle, so that it can slow down for the turns after.
+    start_lead_in_path : array_like, shape (N, 3), optional
+        Points the lead-in follows instead of the osculating circle [m], from the start on (the
+        plan in force's own curve ahead, which its speed already fits), with ``start_tangent``
+        only; taken every knot spacing up to ``start_lead_in`` metres along them.
 
     Returns
     -------
     SmoothedPath
+        With ``start_tangent``, :attr:`SmoothedPath.start_kept` says whether the start
+        conditions were kept.
 
     Raises
     ------
@@ -247,6 +316,16 @@ def smooth_path(raw_path, obstacles: ObstacleSet, safety_margin: float, resoluti
     if knot_spacing is None:
         knot_spacing = max(DEFAULT_KNOT_SPACING_FACTOR * delta, DEFAULT_KNOT_SPACING_MIN)
     knot_gap = positive_number('knot_spacing', knot_spacing)
+    start = _start_conditions(start_tangent, start_curvature)
+    if start_lead_in is not None and start is None:
+        raise InvalidInputError('start_lead_in needs start_tangent')
+    lead_in = (knot_gap if start_lead_in is None
+               else positive_number('start_lead_in', start_lead_in))
+    guide = None
+    if start_lead_in_path is not None:
+        if start is None:
+            raise InvalidInputError('start_lead_in_path needs start_tangent')
+        guide = as_waypoints(start_lead_in_path)
     box = _check_bounds(points, bounds)
     path = dedupe_waypoints(points)
     # Capped: exact below gamma plus the slack, enough for the test and its message.
@@ -257,22 +336,148 @@ def smooth_path(raw_path, obstacles: ObstacleSet, safety_margin: float, resoluti
             f'waypoint {index} {np.round(path[index], 4).tolist()} has clearance '
             f'{clearance[index]:.4f} m, inside the safety margin {gamma:g} m')
     if len(path) == 1:
-        return _single_point(path, obstacles, mode)
+        return _single_point(path, obstacles, mode, start is not None)
+    job = _Job(path, kept_indices(points, path, keep), obstacles, gamma, delta, box, shortcut,
+               mode, knot_gap, spacing, step, checkpoint, guide)
+    if start is None:
+        return _smooth(job)
+    # The motion is continued when a certified curve can keep it (with the lead-in asked for,
+    # else the default one); otherwise the curve starts from rest and says so.
+    for length in dict.fromkeys((lead_in, min(lead_in, knot_gap))):
+        try:
+            smoothed = _smooth(job, start, length)
+        except NoValidPathError:
+            continue
+        if smoothed.start_kept:
+            return smoothed
+    return replace(_smooth(job), start_kept=False)
 
-    if shortcut:
-        vertices, certified, bound = shortcut_legs(path, kept_indices(points, path, keep),
-                                                   obstacles, gamma, delta, box, checkpoint)
+
+class _Job(NamedTuple):
+    """What one smoothing attempt of :func:`smooth_path` works on."""
+
+    path: np.ndarray                # deduplicated waypoints [m]
+    keep: np.ndarray                # indices of ``path`` shortcutting keeps (via-points)
+    obstacles: ObstacleSet
+    gamma: float                    # margin [m]
+    delta: float                    # resolution [m]
+    box: Optional[Tuple[np.ndarray, np.ndarray]]
+    shortcut: bool
+    mode: str
+    knot_gap: float                 # largest knot spacing [m]
+    spacing: float                  # output sample spacing [m]
+    step: float                     # index-mode parameter step [-]
+    checkpoint: Optional[Callable[[], None]]
+    guide: Optional[np.ndarray] = None    # points the lead-in follows [m]
+
+
+def _smooth(job: _Job, start: Optional[Tuple[np.ndarray, np.ndarray]] = None,
+            lead_in: float = 0.0) -> SmoothedPath:
+    """Shortcut, fit, certify and repair once; from rest, or continuing ``start`` (unit
+    tangent, curvature vector [1/m]) along a lead-in of ``lead_in`` [m]."""
+    path, keep = job.path, job.keep
+    forced = keep
+    if start is not None:
+        arc = _lead_in(path[0], start, lead_in, job)
+        if len(arc):
+            # The lead-in vertices are kept, so shortcutting cannot cut the start direction.
+            path = np.vstack([path[:1], arc, path[1:]])
+            keep = keep + len(arc)
+            forced = np.r_[np.arange(1, len(arc) + 1), keep]
+    if job.shortcut:
+        vertices, certified, bound = shortcut_legs(path, forced, job.obstacles, job.gamma,
+                                                   job.delta, job.box, job.checkpoint)
     else:
         vertices = path
         certified = np.zeros(len(path) - 1, dtype=bool)
         bound = np.full(len(path) - 1, -np.inf)
-    layout = initial_layout(vertices, certified, bound, mode, knot_gap)
-    chain, check, events = repair_curve(layout, mode, obstacles, gamma, delta, box, checkpoint)
-    if checkpoint is not None:
-        checkpoint()
-    kept = vertex_indices(vertices, path, kept_indices(points, path, keep))
-    via_sigma = layout.sigma[kept]
-    return _assemble(path, layout, chain, check, events, mode, spacing, step, via_sigma)
+    spline_start = None if start is None or job.mode == 'none' else start
+    layout = initial_layout(vertices, certified, bound, job.mode, job.knot_gap, spline_start)
+    chain, check, events = repair_curve(layout, job.mode, job.obstacles, job.gamma, job.delta,
+                                        job.box, job.checkpoint)
+    if job.checkpoint is not None:
+        job.checkpoint()
+    via_sigma = layout.sigma[vertex_indices(vertices, path, keep)]
+    kept: Optional[bool] = None
+    if start is not None:
+        # A repair that straightened the first gap has lost the curvature; a polyline keeps
+        # only a straight start.
+        kept = (not chain.line[0] if job.mode != 'none'
+                else float(np.linalg.norm(start[1])) <= _STRAIGHT_START)
+    return _assemble(job.path, layout, chain, check, events, job.mode, job.spacing, job.step,
+                     via_sigma, start if kept else None, kept)
+
+
+def _start_conditions(tangent, curvature) -> Optional[Tuple[np.ndarray, np.ndarray]]:
+    """The unit tangent and the curvature vector normal to it, checked; None without them."""
+    if tangent is None:
+        if curvature is not None:
+            raise InvalidInputError('start_curvature needs start_tangent')
+        return None
+    direction = as_point(tangent, 'start_tangent')
+    norm = float(np.linalg.norm(direction))
+    if not norm > 0.0:
+        raise InvalidInputError('start_tangent must be a nonzero vector, got '
+                                f'{direction.tolist()}')
+    direction = direction / norm
+    if curvature is None:
+        return direction, np.zeros(3)
+    bend = as_point(curvature, 'start_curvature')
+    return direction, bend - float(np.dot(bend, direction)) * direction
+
+
+def _along(points: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """Points at arc lengths ``s`` [m] along the polyline ``points`` (clamped to its end)."""
+    chord = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))]
+    s = np.minimum(s, chord[-1])
+    s = s[np.r_[True, np.diff(s) > 0.0]] if len(s) else s
+    return np.stack([np.interp(s, chord, points[:, k]) for k in range(3)], axis=1)
+
+
+def _lead_in(origin: np.ndarray, start: Tuple[np.ndarray, np.ndarray], length: float,
+             job: _Job) -> np.ndarray:
+    """Vertices of the lead-in: the osculating circle of the start, sampled every knot gap.
+
+    At most :data:`LEAD_IN_MAX_TURN` of the circle is taken. The chords from the start are
+    certified to keep gamma (and the box); the lead-in ends before the first one that does not.
+    When not even the first does, one chord of half the length is tried, and so on down to a
+    quarter of delta.
+
+    Returns
+    -------
+    numpy.ndarray, shape (k, 3)
+        The vertices after the start [m], k >= 0.
+    """
+    tangent, curvature = start
+    kappa = float(np.linalg.norm(curvature))
+    if kappa > 0.0 and job.guide is None:
+        length = min(length, LEAD_IN_MAX_TURN / kappa)
+    count = max(int(math.ceil(length / job.knot_gap - 1e-9)), 1)
+    while length >= MIN_KNOT_GAP_FRACTION * job.delta:
+        s = length * np.arange(1, count + 1) / count
+        if job.guide is not None:
+            arc = _along(np.vstack([origin, job.guide]), s)
+        elif kappa * length <= 1e-9:
+            arc = origin + s[:, None] * tangent
+        else:
+            normal = curvature / kappa
+            arc = (origin + (np.sin(kappa * s) / kappa)[:, None] * tangent
+                   + ((1.0 - np.cos(kappa * s)) / kappa)[:, None] * normal)
+        good = np.ones(len(arc), dtype=bool)
+        if job.box is not None:
+            good &= np.all((arc >= job.box[0]) & (arc <= job.box[1]), axis=1)
+        if not job.obstacles.is_empty():
+            ends = np.vstack([origin, arc])
+            clear, _ = segments_clear(ends[:-1], ends[1:], job.obstacles, job.gamma,
+                                      SEGMENT_SPACING, job.delta * FINEST_SPACING_FRACTION,
+                                      job.checkpoint)
+            good &= clear
+        usable = len(arc) if good.all() else int(np.argmin(good))
+        if usable:
+            return arc[:usable]
+        length = 0.5 * float(s[0])
+        count = 1
+    return np.zeros((0, 3))
 
 
 def _check_bounds(points: np.ndarray, bounds) -> Optional[Tuple[np.ndarray, np.ndarray]]:
@@ -288,7 +493,8 @@ def _check_bounds(points: np.ndarray, bounds) -> Optional[Tuple[np.ndarray, np.n
     return lo, hi
 
 
-def _single_point(path: np.ndarray, obstacles: ObstacleSet, mode: str) -> SmoothedPath:
+def _single_point(path: np.ndarray, obstacles: ObstacleSet, mode: str,
+                  moving: bool) -> SmoothedPath:
     point = path[:1].copy()
     clearance = float(obstacles.distance(point)[0])
     zeros = np.zeros((1, 3))
@@ -303,12 +509,15 @@ def _single_point(path: np.ndarray, obstacles: ObstacleSet, mode: str) -> Smooth
         length_m=0.0, min_clearance_m=clearance, min_clearance_point=point[0].copy(),
         certified_clearance_m=clearance, repaired_stretches=(),
         interval_tangent_max=np.zeros((0, 2)), interval_curvature_max=np.zeros((0, 2)),
-        curve=curve)
+        curve=curve, start_kept=False if moving else None)
 
 
 def _assemble(path: np.ndarray, layout: Layout, chain: Chain, check: Check,
               events: List[RepairEvent], mode: str, spacing: float, step: float,
-              via_sigma: np.ndarray) -> SmoothedPath:
+              via_sigma: np.ndarray, start: Optional[Tuple[np.ndarray, np.ndarray]],
+              kept: Optional[bool]) -> SmoothedPath:
+    """The accepted chain as a :class:`SmoothedPath`; ``start`` (unit tangent, curvature
+    vector) when the curve continues a motion, checked here, and ``kept`` as reported."""
     pieces = chain.pieces
     grid = check.grid
     span_piece, span_tau = span_samples(chain, grid, mode, spacing, step, via_sigma)
@@ -321,7 +530,12 @@ def _assemble(path: np.ndarray, layout: Layout, chain: Chain, check: Check,
                                                 pieces.second(piece, tau))
     tangent_out = tangent_in.copy()
     arc = arc_length_at(pieces, grid, piece, tau)
-    stops = [0]
+    if start is not None:
+        tangent, bend = start
+        kept = bool(np.linalg.norm(tangent_in[0] - tangent) <= START_TOLERANCE
+                    and np.linalg.norm(curvature_vec[0] - bend)
+                    <= START_TOLERANCE * (1.0 + float(np.linalg.norm(bend))))
+    stops = [] if kept else [0]
     for k, index in enumerate(junction):
         nxt = np.array([span_piece[k + 1][0]])
         t_out, k_out = arc_derivatives(pieces.first(nxt, np.zeros(1)),
@@ -342,8 +556,12 @@ def _assemble(path: np.ndarray, layout: Layout, chain: Chain, check: Check,
     piece_start = np.r_[grid.s[grid.first & (grid.tau == 0.0)], grid.s[-1]]
     ia = np.flatnonzero(grid.first)
     curve = PathCurve(pieces, grid.piece[ia], grid.tau[ia], grid.tau[ia + 1], grid.s[ia],
-                      grid.s[ia + 1], piece_start, arc[np.asarray(stops)])
+                      grid.s[ia + 1], piece_start, arc[np.asarray(stops, dtype=np.int64)])
     knot_sigma = np.r_[chain.sig[:, 0], chain.sig[-1, 1]]
+    knots = layout.points(knot_sigma)
+    if layout.start is not None and len(chain.span) > 1 and chain.span[1] == chain.span[0]:
+        # The clamped first run leaves its first knot after the start free (repair.start_spline).
+        knots[1] = pieces.position(np.zeros(1, dtype=np.int64), pieces.h[:1])[0]
     certified = np.where(chain.trusted, layout.bound[chain.gap], check.cert.certified)
     tangent_max, curvature_max = interval_maxima(pieces, grid, arc, tangent_in, tangent_out,
                                                  curvature_vec)
@@ -355,11 +573,12 @@ def _assemble(path: np.ndarray, layout: Layout, chain: Chain, check: Check,
         shortcut_length_m=polyline_length(layout.vertices), mode=mode, positions=positions,
         arc_length=arc, tangents=tangent_out, incoming_tangents=tangent_in,
         curvature_vectors=curvature_vec, curvature=np.linalg.norm(curvature_vec, axis=1),
-        stop_points=np.asarray(stops), knots=layout.points(knot_sigma),
+        stop_points=np.asarray(stops, dtype=np.int64), knots=knots,
         length_m=float(grid.s[-1]), min_clearance_m=check.cert.min_clearance,
         min_clearance_point=min_point, certified_clearance_m=float(np.min(certified)),
         repaired_stretches=_stretches(events, knot_sigma, piece_start),
-        interval_tangent_max=tangent_max, interval_curvature_max=curvature_max, curve=curve)
+        interval_tangent_max=tangent_max, interval_curvature_max=curvature_max, curve=curve,
+        start_kept=kept)
 
 
 def _stretches(events: List[RepairEvent], knot_sigma: np.ndarray,

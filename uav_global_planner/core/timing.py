@@ -1,194 +1,688 @@
-"""Time parameterisation of a smoothed path under separate horizontal and vertical limits.
+"""Jerk-limited time parameterisation of a certified curve, from rest or from a moving state.
 
-The speed profile is found on the samples of
-:class:`~uav_global_planner.core.smoothing.SmoothedPath` in the phase plane ``u = (ds/dt)^2``,
-with constant tangential acceleration ``a_j = (u[j+1] - u[j]) / (2 ds_j)`` on the interval between
-samples ``j`` and ``j + 1``; ``u`` is then linear in arc length and the speed exact for uniformly
-accelerated motion along the arc. At a point with unit tangent ``T`` and curvature vector
-``K = d2c/ds2`` the acceleration is ``a T + u K``. Writing ``_h`` for the norm of the (x, y) part
-and ``_z`` for the absolute z part, and ``T_h``, ``T_z``, ``K_h``, ``K_z`` for their largest values
-over the interval (``SmoothedPath.interval_tangent_max`` and ``interval_curvature_max``: the ends
-plus every verification sample inside, <= delta / 20 apart), the limits are enforced through the
-sufficient conditions, at both ends of every interval::
+The reference flies the certified curve itself (path-velocity decomposition), so its clearance
+is the curve's certificate. Only the arc length in time, ``s(t)``, is chosen here, in three
+steps; the reference and its derivatives are those of
+:mod:`uav_global_planner.core.reference`.
 
-    sqrt(u) T_h <= v_h,        sqrt(u) T_z <= v_z                       (speed)
-    |a| T_h + u K_h <= a_h,    |a| T_z + u K_z <= a_z                   (acceleration)
+1. **Bounds per interval.** Between two samples of the curve (interval ``i``), with ``T_c``,
+   ``K_c`` the largest horizontal (``c = h``) and vertical (``c = z``) components of the unit
+   tangent and of the curvature vector, ``|K|`` and ``|K'|`` the largest norms of the curvature
+   vector and of its arc-length derivative, and ``A_c`` the acceleration box that also keeps
+   tilt and thrust (:mod:`uav_global_planner.core.motion_limits`), the interval gets a speed
+   cap ``w_i``, a tangential acceleration bound ``alpha_i`` and a tangential jerk allowance
+   ``zeta_i`` such that, for every speed ``v <= w_i``, ``|s_tt| <= alpha_i`` and
+   ``|s_ttt| <= zeta_i``::
 
-They bound the true components by the triangle inequality, and since they are linear in ``u``,
-which is linear along the interval, they then hold at every point inside it as well (up to the
-delta / 20 sampling of the maxima). The second line reads ``|a| <= g(u)``, ``g`` a minimum of
-linear functions decreasing in ``u``; ``u K <= a_lim`` is the curvature (centripetal) limit. A
-backward pass from the goal (largest ``u`` from which the vehicle can still brake) and a forward
-pass from the start (largest ``u`` it can reach) give the time-optimal profile for these
-conditions, and the monotonicity of ``g`` makes every interval satisfy them at both ends. The
-speed is 0 at the start, the goal and every stop point (polyline corners, where the curve is not
-C1).
+       v T_c <= V_c                                            (speed)
+       alpha_i T_c + w_i^2 K_c <= A_c                          (acceleration, by components)
+       zeta_i + 3 w_i alpha_i |K| + w_i^3 |K'| <= J            (jerk norm)
 
-The reported acceleration at a sample is the mean of the accelerations of the two intervals
-meeting there (each with the tangent of its own side); both are within the limits, and so is
-their mean, the limit set being convex. Velocities are ``sqrt(u) T``.
+   Both sides of each line bound the true components by the triangle inequality, since
+   ``a = s_tt T + s_t^2 K`` and ``j = s_ttt T + 3 s_t s_tt K + s_t^3 K'``. The centripetal
+   term leaves :data:`TANGENTIAL_RESERVE` of ``A_c``; in a bend the jerk terms first lower
+   ``alpha_i`` (down to :data:`MIN_ALPHA_SHARE` of itself), then ``w_i``, and always leave
+   ``zeta_i >= alpha_i J / max(alpha)``. A user's speed cap (the vehicle's tracking room near
+   obstacles, :mod:`uav_global_planner.core.tracking`) lowers ``w_i`` first.
+
+2. **A profile with piecewise constant acceleration** ``s0(t)``. For a window ``tau``, every
+   interval takes the smallest ``alpha`` of the intervals that reach it within ``tau w`` and
+   the largest ``c <= min(w)`` over its own ``tau c`` (:func:`_reach_min`,
+   :func:`_self_reach_min`). The time-optimal ``s0`` for those bounds comes from the backward
+   and forward passes over ``u = v^2`` (``u`` is linear in arc length under a constant
+   acceleration); where it turns straight from accelerating to braking, or back, it is held
+   flat for ``tau`` (:func:`_plateaus`); it stops at each point where the curve is not C1
+   (polyline corners) and waits there ``tau`` seconds.
+
+3. **A moving average.** ``s(t)`` is the mean of ``s0`` over ``[t - tau, t]``. Over such a
+   window ``s0`` moves at most ``tau`` times its largest speed there, so every speed and
+   acceleration of ``s0`` in the window keeps the bounds of the interval where ``s(t)`` is;
+   their means do too, which proves speed, acceleration, tilt and thrust at every time.
+   ``s_tt`` is continuous (``s0``'s speed is) and ``s_ttt = (s0_tt(t) - s0_tt(t - tau)) /
+   tau`` is piecewise constant: :func:`_jerk_fits` holds each of its pieces exactly against
+   the allowance ``zeta`` of the arc it covers. ``tau = max(alpha) / J`` is tried first, longer
+   windows after; ``2 max(alpha) / J`` proves the jerk for any profile. At a corner ``s0``
+   waits ``tau``, so the mean reaches it with zero speed and acceleration, and leaves it as
+   smoothly.
+
+From a moving state (speed ``v`` along the start tangent and tangential acceleration ``a``)
+``s0`` gets a history over ``[-tau, 0]`` (acceleration ``alpha`` long enough to rise by
+``a tau``, then a constant speed) whose mean speed is ``v``: then ``s_t(0) = v`` and
+``s_tt(0) = a`` exactly; the start tangent and curvature of the curve
+(:func:`uav_global_planner.core.smoothing.smooth_path`) carry the rest of the velocity and
+acceleration. When the vehicle cannot brake for the new curve from that state, or is faster
+than its caps, the speed is lowered to the largest that fits, and
+:attr:`TimingResult.start_speed` says so.
+
+The tangent, curvature and curvature-rate maxima of an interval are taken at its ends and at
+the curve's verification samples inside it (spacing <= delta / 20), widened by the bound of
+their derivative times half the interval; the limits are otherwise proved, not sampled.
 """
 
+from dataclasses import dataclass
 import math
-from typing import List
+from typing import List, Optional, Tuple
 
 import numpy as np
 
+from uav_global_planner.core.motion_limits import MotionLimits
+from uav_global_planner.core.reference import ArcProfile, profile_from_pieces, TimedReference
 from uav_global_planner.core.result import Trajectory
-from uav_global_planner.core.settings import check_setting
 from uav_global_planner.core.smoothing import SmoothedPath
+from uav_global_planner.core.yaw import yaw_profile, YawProfile
+
+#: Share of an acceleration limit kept for tangential acceleration where the centripetal
+#: term takes the rest, and the smallest share of its tangential acceleration bound that a
+#: bend's jerk terms may take away before its speed is lowered [-].
+MIN_ALPHA_SHARE = 0.35
+
+#: Share of an acceleration limit that the centripetal term leaves to tangential
+#: acceleration in the tightest bends [-].
+TANGENTIAL_RESERVE = 0.35
+
+#: Windows tried, in units of max(alpha) / J: the last one proves the jerk for any profile.
+_WINDOW_FACTORS = (1.0, 2.0)
+_MOVING_WINDOW_FACTORS = (1.0, 1.25, 1.5, 2.0)
+
+#: Points per interval where the curvature rate is taken (ends included).
+_RATE_POINTS = (0.0, 0.5, 1.0)
+
+#: Geometric levels of reach radii in :func:`_reach_min`, each this ratio of the next.
+_REACH_LEVELS = 24
+_REACH_RATIO = 0.8
+
+#: Bisection steps of :func:`_self_reach_min`: the cap it finds is within 2^-24 of the
+#: largest that fits, and always one that fits.
+_REACH_BISECTIONS = 24
+
+#: Rounds of plateaus at the turns of the profile (each may leave new, smaller turns).
+_PLATEAU_ROUNDS = 3
+_PLATEAU_MIN_U = 1e-4     # [m^2/s^2]
+
+#: Rounds that lower a start speed too fast to brake for the curve.
+_LAUNCH_ROUNDS = 6
+
+#: Bisection steps when finding the time of each sample (the bracket is tau / 4 wide).
+_BISECTIONS = 44
 
 
-def _split(vectors: np.ndarray):
-    """Horizontal norm and vertical magnitude of each row."""
-    return np.hypot(vectors[:, 0], vectors[:, 1]), np.abs(vectors[:, 2])
+@dataclass(frozen=True)
+class StartMotion:
+    """The state the reference starts from, along the start tangent of the curve.
+
+    Attributes
+    ----------
+    speed : float
+        [m/s], >= 0.
+    accel : float
+        Tangential acceleration [m/s^2].
+    """
+
+    speed: float = 0.0
+    accel: float = 0.0
 
 
-def _ratio(limit: float, component: np.ndarray) -> np.ndarray:
-    """``limit / component`` with +inf where the component vanishes."""
-    with np.errstate(divide='ignore'):
-        return np.where(component > 0.0, limit / np.where(component > 0.0, component, 1.0),
-                        np.inf)
+@dataclass(frozen=True, eq=False)
+class TimingResult:
+    """A timed trajectory and how its start and limits came out.
+
+    Attributes
+    ----------
+    trajectory : Trajectory
+        Samples at the curve's samples, and the continuous reference.
+    window_s : float
+        The averaging window tau [s].
+    start_speed, start_accel : float
+        Speed [m/s] and tangential acceleration [m/s^2] the reference starts with; below the
+        requested ones only when the vehicle could not brake for the curve otherwise.
+    """
+
+    trajectory: Trajectory
+    window_s: float
+    start_speed: float
+    start_accel: float
 
 
-def _inverse(component: np.ndarray) -> np.ndarray:
-    """``1 / component``, 0 where the component vanishes (its term is dropped anyway)."""
-    return np.where(component > 0.0, 1.0 / np.where(component > 0.0, component, 1.0), 0.0)
-
-
-def time_parameterize(smoothed: SmoothedPath, max_speed_horizontal: float,
-                      max_speed_vertical: float, max_accel_horizontal: float,
-                      max_accel_vertical: float) -> Trajectory:
-    """Fastest rest-to-rest timing of the samples within speed and acceleration limits.
+def time_parameterize(smoothed: SmoothedPath, limits: MotionLimits = MotionLimits(), *,
+                      start: StartMotion = StartMotion(),
+                      speed_cap: Optional[np.ndarray] = None, yaw_mode: str = 'velocity',
+                      initial_yaw: Optional[float] = None) -> TimingResult:
+    """Fastest jerk-limited timing of the certified curve that this construction proves.
 
     Parameters
     ----------
     smoothed : SmoothedPath
-    max_speed_horizontal, max_speed_vertical : float
-        Limits on the norm of (vx, vy) and on |vz| [m/s], > 0.
-    max_accel_horizontal, max_accel_vertical : float
-        Limits on the norm of (ax, ay) and on |az| [m/s^2], > 0.
+        The certified curve and its samples.
+    limits : MotionLimits
+        Speed, acceleration, jerk, tilt, thrust and yaw-rate limits.
+    start : StartMotion
+        Speed and tangential acceleration at the start; from rest by default.
+    speed_cap : numpy.ndarray, shape (M,), optional
+        Largest speed at each sample of ``smoothed`` [m/s], > 0 (an interval takes the
+        smaller of its ends').
+    yaw_mode : str
+        ``'velocity'``, ``'fixed'`` or ``'goal'`` (:mod:`uav_global_planner.core.yaw`).
+    initial_yaw : float, optional
+        Heading at the start [rad] (ENU).
 
     Returns
     -------
-    Trajectory
-        ``times`` strictly increasing from 0 [s]; ``positions`` the samples [m]; ``velocities``
-        [m/s] zero at the start, the goal and every stop point; ``accelerations`` [m/s^2].
+    TimingResult
     """
-    # The limits are checked by their table entries (core/settings.py).
-    vh = check_setting('max_speed_horizontal', max_speed_horizontal)
-    vz = check_setting('max_speed_vertical', max_speed_vertical)
-    ah = check_setting('max_accel_horizontal', max_accel_horizontal)
-    az = check_setting('max_accel_vertical', max_accel_vertical)
     positions = smoothed.positions
+    arc = np.asarray(smoothed.arc_length, dtype=np.float64)
     count = len(positions)
-    if count < 2:
-        zeros = np.zeros((count, 3))
-        return Trajectory(times=np.zeros(count), positions=positions.copy(), velocities=zeros,
-                          accelerations=zeros.copy())
+    goal = positions[-1] if count else np.zeros(3)
+    if count < 2 or not arc[-1] > 0.0:
+        return _at_rest(smoothed, limits, yaw_mode, initial_yaw)
+    stations = _Stations.of(smoothed, speed_cap)
+    box = limits.acceleration_box()
+    cap, alpha, zeta, shortest = stations.bounds(limits, box.horizontal, box.vertical)
+    moving = start.speed > 0.0
+    # With tau = max(alpha) / J a jump of alpha in the tangential acceleration over the
+    # window fits the allowance zeta; a jump from +alpha to -alpha needs twice the window,
+    # which proves the jerk whatever the profile. Shorter windows are tried first and kept
+    # where the exact check of the profile built with them passes.
+    table = _MinTable(cap)
+    allowance = _MinTable(zeta)
+    # A moving start also wants the window that keeps its speed: a longer window makes s0
+    # lead the mean by more, which a vehicle accelerating near its speed cap cannot.
+    best: Optional[Tuple[ArcProfile, float, float]] = None
+    for factor in _MOVING_WINDOW_FACTORS if moving else _WINDOW_FACTORS:
+        tau = factor * shortest
+        near_cap = _self_reach_min(stations.s, table, tau)
+        near_alpha = _reach_min(stations.s, alpha, tau * cap)
+        found = _profile(stations, near_cap, near_alpha, tau, start if moving else None)
+        if factor < 2.0 and not _jerk_fits(found[0], stations.s, allowance):
+            continue
+        if best is None or found[1] > best[1]:
+            best = found
+        if not moving or found[1] >= start.speed:
+            break
+    assert best is not None  # the last window always proves the jerk
+    profile, start_speed, start_accel = best
+    reference_motion = _Motion(smoothed, profile)
+    yaw = yaw_profile(yaw_mode, profile.duration_s, limits.yaw_rate, reference_motion,
+                      goal, initial_yaw)
+    reference = TimedReference(curve=smoothed.curve, arc=profile, yaw=yaw)
+    times = _times_of(profile, arc)
+    state = reference.evaluate(times)
+    velocities, accelerations, jerks = state.velocity, state.acceleration, state.jerk
+    stops = np.asarray(smoothed.stop_points, dtype=np.int64)
+    if moving:
+        stops = stops[stops != 0]
+    velocities[stops] = 0.0
+    accelerations[stops] = 0.0
+    trajectory = Trajectory(times=times, positions=positions.copy(), velocities=velocities,
+                            accelerations=accelerations, jerks=jerks, yaws=state.yaw,
+                            yaw_rates=state.yaw_rate, reference=reference)
+    return TimingResult(trajectory=trajectory, window_s=tau, start_speed=start_speed,
+                        start_accel=start_accel)
 
-    tangent = smoothed.interval_tangent_max
-    curvature = smoothed.interval_curvature_max
-    # Per interval: g(u) = min_c (A_c - B_c u) with A = a_lim / T_max, B = K_max / T_max. Where a
-    # tangent component vanishes, A = +inf drops the term (the cap below covers u K <= a_lim).
-    limits = np.array([ah, az])
-    coef_a = _ratio(1.0, tangent) * limits
-    coef_b = curvature * _inverse(tangent)
-    # Speed caps per interval (speed limits on T_max, curvature limit on K_max); a sample takes
-    # the smaller of its two intervals'.
-    interval_cap = np.minimum.reduce([_ratio(vh * vh, tangent[:, 0] ** 2),
-                                      _ratio(vz * vz, tangent[:, 1] ** 2),
-                                      _ratio(ah, curvature[:, 0]), _ratio(az, curvature[:, 1])])
-    cap = np.minimum(np.r_[interval_cap, np.inf], np.r_[np.inf, interval_cap])
-    cap[smoothed.stop_points] = 0.0
-    ds = np.diff(smoothed.arc_length)
-    u = _speed_profile(ds.tolist(), cap.tolist(), coef_a.tolist(), coef_b.tolist())
 
-    speed = np.sqrt(u)
-    tangential = (u[1:] - u[:-1]) / (2.0 * ds)
-    dt = 2.0 * ds / (speed[1:] + speed[:-1])
-    times = np.r_[0.0, np.cumsum(dt)]
-    velocities = speed[:, None] * smoothed.tangents
-    velocities[smoothed.stop_points] = 0.0
-    centripetal = u[:, None] * smoothed.curvature_vectors
-    leaving = tangential[:, None] * smoothed.tangents[:-1] + centripetal[:-1]
-    arriving = tangential[:, None] * smoothed.incoming_tangents[1:] + centripetal[1:]
-    accelerations = np.zeros((count, 3))
-    accelerations[:-1] += leaving
-    accelerations[1:] += arriving
-    accelerations[1:-1] *= 0.5
-    return Trajectory(times=times, positions=positions.copy(), velocities=velocities,
-                      accelerations=accelerations)
+class _Motion:
+    """Positions and velocities of the reference without its heading (the yaw input)."""
+
+    def __init__(self, smoothed: SmoothedPath, profile: ArcProfile) -> None:
+        self._curve = smoothed.curve
+        self._profile = profile
+
+    def __call__(self, times: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+        s, speed, _, _ = self._profile.evaluate(times)
+        position, tangent, _, _ = self._curve.derivatives3(s)
+        return position, speed[:, None] * np.nan_to_num(tangent)
 
 
-def _speed_profile(ds: List[float], cap: List[float], coef_a: List[list],
-                   coef_b: List[list]) -> np.ndarray:
-    """Backward then forward pass over ``u = speed^2``; plain floats, one sample at a time."""
-    count = len(cap)
-    inf = math.inf
+@dataclass
+class _Stations:
+    """Arc lengths of the profile's stations and the curve's maxima over each interval."""
 
-    def explicit(u: float, a: list, b: list) -> float:
-        # g(u): the tangential acceleration left by the curvature terms.
-        return min(a[0] - b[0] * u if a[0] != inf else inf,
-                   a[1] - b[1] * u if a[1] != inf else inf)
+    s: np.ndarray            # (n,) [m]
+    stop: np.ndarray         # (n,) bool: the speed is zero there
+    tangent: np.ndarray      # (n - 1, 2) largest |T_h|, |T_z|
+    curvature: np.ndarray    # (n - 1, 2) largest |K_h|, |K_z| [1/m]
+    curvature_norm: np.ndarray   # (n - 1,) largest |K| [1/m]
+    curvature_rate: np.ndarray   # (n - 1,) largest |K'| [1/m^2]
+    user_cap: np.ndarray     # (n - 1,) [m/s]
 
-    def implicit(base: float, step: float, a: list, b: list) -> float:
-        # Largest u with u - base <= step * (A - B u) for both terms.
-        out = inf
-        for c in (0, 1):
-            if a[c] != inf:
-                out = min(out, (base + step * a[c]) / (1.0 + step * b[c]))
+    @classmethod
+    def of(cls, smoothed: SmoothedPath, speed_cap: Optional[np.ndarray]) -> '_Stations':
+        s = np.asarray(smoothed.arc_length, dtype=np.float64)
+        stop = np.zeros(len(s), dtype=bool)
+        stop[np.asarray(smoothed.stop_points, dtype=np.int64)] = True
+        tangent = np.asarray(smoothed.interval_tangent_max, dtype=np.float64)
+        curvature = np.asarray(smoothed.interval_curvature_max, dtype=np.float64)
+        if speed_cap is None:
+            user = np.full(len(s) - 1, np.inf)
+        else:
+            at = np.asarray(speed_cap, dtype=np.float64).reshape(-1)
+            user = np.minimum(at[:-1], at[1:])
+        # An interval between two stops gets a station in its middle, where the profile
+        # turns from accelerating to braking.
+        both = np.flatnonzero(stop[:-1] & stop[1:])
+        if len(both):
+            s = np.insert(s, both + 1, 0.5 * (s[both] + s[both + 1]))
+            stop = np.insert(stop, both + 1, False)
+            tangent = np.insert(tangent, both, tangent[both], axis=0)
+            curvature = np.insert(curvature, both, curvature[both], axis=0)
+            user = np.insert(user, both, user[both])
+        ds = np.diff(s)
+        points = (s[:-1, None] + ds[:, None] * np.asarray(_RATE_POINTS)[None, :])
+        # Just inside the interval at its right end (a stop there has the next piece's).
+        points[:, -1] = s[1:] - 1e-9 * ds
+        _, _, normal, rate = smoothed.curve.derivatives3(points.ravel())
+        shape = points.shape
+        normal_norm = np.nan_to_num(np.linalg.norm(normal, axis=1)).reshape(shape)
+        rate_norm = np.nan_to_num(np.linalg.norm(rate, axis=1)).reshape(shape)
+        curvature_norm = np.maximum(np.hypot(curvature[:, 0], curvature[:, 1]),
+                                    normal_norm.max(axis=1))
+        rate_max = rate_norm.max(axis=1)
+        # Between the points where they were taken the maxima can grow by at most the
+        # derivative's bound times half the interval (every point of it is that close to one
+        # of its ends).
+        half = 0.5 * ds
+        tangent = np.minimum(tangent + (curvature_norm * half)[:, None], 1.0)
+        curvature = curvature + (rate_max * half)[:, None]
+        curvature_norm = curvature_norm + rate_max * half
+        return cls(s=s, stop=stop, tangent=tangent, curvature=curvature,
+                   curvature_norm=curvature_norm, curvature_rate=rate_max,
+                   user_cap=user)
+
+    def bounds(self, limits: MotionLimits, accel_h: float,
+               accel_z: float) -> Tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+        """Speed cap ``w`` [m/s], tangential acceleration bound ``alpha`` [m/s^2] and
+        tangential jerk allowance ``zeta`` [m/s^3] per interval (module docstring, step 1),
+        and the shortest window ``tau`` [s].
+
+        ``zeta = J - 3 w alpha |K| - w^3 |K'|`` is at least ``alpha / tau``: what a jump of
+        ``alpha`` over the window asks.
+        """
+        th, tz = self.tangent[:, 0], self.tangent[:, 1]
+        kh, kz = self.curvature[:, 0], self.curvature[:, 1]
+        keep = 1.0 - TANGENTIAL_RESERVE
+        cap = np.minimum.reduce([_ratio(limits.speed_horizontal, th),
+                                 _ratio(limits.speed_vertical, tz),
+                                 np.sqrt(_ratio(keep * accel_h, kh)),
+                                 np.sqrt(_ratio(keep * accel_z, kz)), self.user_cap])
+        alpha = np.minimum(_ratio(1.0, th) * (accel_h - cap ** 2 * kh),
+                           _ratio(1.0, tz) * (accel_z - cap ** 2 * kz))
+        # Jerk: alpha (J / max(alpha)) + 3 w alpha |K| + w^3 |K'| <= J. On a straight the
+        # tangential jerk takes all of J; in a bend speed matters more than tangential
+        # acceleration, so alpha gives way first (down to MIN_ALPHA_SHARE of itself), and only
+        # then the speed cap.
+        jerk = limits.jerk
+        per_alpha = jerk / float(np.max(alpha))
+        knorm, rate = self.curvature_norm, self.curvature_rate
+        spare = jerk - cap ** 3 * rate
+        wanted = spare / (per_alpha + 3.0 * cap * knorm)
+        alpha = np.clip(wanted, MIN_ALPHA_SHARE * alpha, alpha)
+        fits = alpha * (per_alpha + 3.0 * cap * knorm) + cap ** 3 * rate <= jerk
+        cap = np.where(fits, cap, np.minimum(cap, _cubic_cap(3.0 * alpha * knorm, rate,
+                                                             jerk - alpha * per_alpha)))
+        zeta = jerk - 3.0 * cap * alpha * knorm - cap ** 3 * rate
+        return cap, alpha, np.maximum(zeta, alpha * per_alpha), 1.0 / per_alpha
+
+
+def _ratio(limit: float, component: np.ndarray) -> np.ndarray:
+    """``limit / component`` with +inf where the component vanishes."""
+    safe = np.where(component > 0.0, component, 1.0)
+    return np.where(component > 0.0, limit / safe, np.inf)
+
+
+def _quotient(numerator: np.ndarray, denominator: np.ndarray) -> np.ndarray:
+    """``numerator / denominator`` with +inf where the denominator vanishes."""
+    safe = np.where(denominator > 0.0, denominator, 1.0)
+    return np.where(denominator > 0.0, numerator / safe, np.inf)
+
+
+def _cubic_cap(linear: np.ndarray, cubic: np.ndarray, room: np.ndarray) -> np.ndarray:
+    """Largest ``w >= 0`` with ``linear * w + cubic * w^3 <= room`` (coefficients and room
+    >= 0, each per interval).
+
+    Newton's method from an upper bound decreases monotonically to the root (the left side is
+    convex and increasing); the result is rounded down.
+    """
+    room = np.broadcast_to(np.maximum(room, 0.0), np.shape(linear))
+    w = np.minimum(_quotient(room, linear), np.cbrt(_quotient(room, cubic)))
+    finite = np.isfinite(w)
+    x = w[finite]
+    a, b, c = linear[finite], cubic[finite], room[finite]
+    for _ in range(60):
+        value = a * x + b * x ** 3 - c
+        slope = a + 3.0 * b * x ** 2
+        step = np.where(slope > 0.0, value / np.where(slope > 0.0, slope, 1.0), 0.0)
+        x = x - np.maximum(step, 0.0)
+        if np.all(step <= 1e-14 * np.maximum(x, 1e-12)):
+            break
+    w[finite] = x * (1.0 - 1e-12)
+    return w
+
+
+class _MinTable:
+    """Range minima of a fixed array in O(1) per query (a sparse table)."""
+
+    def __init__(self, values: np.ndarray) -> None:
+        self.levels: List[np.ndarray] = [np.asarray(values, dtype=np.float64)]
+        width = 1
+        while 2 * width <= len(values):
+            last = self.levels[-1]
+            self.levels.append(np.minimum(last[:-width], last[width:]))
+            width *= 2
+
+    def query(self, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+        """Minimum over ``values[lo[k]:hi[k] + 1]`` for each k (``lo <= hi``)."""
+        level = np.floor(np.log2(hi - lo + 1)).astype(np.int64)
+        out = np.empty(len(lo))
+        for k in np.unique(level):
+            rows = np.flatnonzero(level == k)
+            table = self.levels[k]
+            out[rows] = np.minimum(table[lo[rows]], table[hi[rows] - (1 << int(k)) + 1])
         return out
 
-    back = [0.0] * count
-    for j in range(count - 2, -1, -1):
-        step = 2.0 * ds[j]
-        nxt = back[j + 1]
-        reach = min(nxt + step * explicit(nxt, coef_a[j], coef_b[j]),
-                    implicit(nxt, step, coef_a[j], coef_b[j]))
-        back[j] = min(cap[j], max(nxt, reach))
-    u = [0.0] * count
-    for j in range(count - 1):
-        step = 2.0 * ds[j]
-        cur = u[j]
-        reach = min(cur + step * explicit(cur, coef_a[j], coef_b[j]),
-                    implicit(cur, step, coef_a[j], coef_b[j]))
-        u[j + 1] = min(back[j + 1], max(cur, reach))
-    return np.maximum(np.asarray(u), 0.0)
+
+def _within(s: np.ndarray, radius: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+    """First and last interval within ``radius`` of each interval (arc lengths ``s``)."""
+    own = np.arange(len(s) - 1)
+    lo = np.minimum(np.searchsorted(s[1:], s[:-1] - radius, side='right'), own)
+    hi = np.maximum(np.searchsorted(s[:-1], s[1:] + radius, side='left') - 1, own)
+    return lo, hi
 
 
-def check_limits(trajectory: Trajectory, max_speed_horizontal: float, max_speed_vertical: float,
-                 max_accel_horizontal: float, max_accel_vertical: float,
-                 rtol: float = 1e-6) -> List[str]:
-    """Describe every limit the trajectory's samples break; an empty list means none.
+def _self_reach_min(s: np.ndarray, caps: '_MinTable', tau: float) -> np.ndarray:
+    """Largest ``c`` per interval with ``c <= min(cap)`` over the intervals within ``tau c``.
 
-    Parameters
-    ----------
-    trajectory : Trajectory
-    max_speed_horizontal, max_speed_vertical : float
-        [m/s]
-    max_accel_horizontal, max_accel_vertical : float
-        [m/s^2]
-    rtol : float
-        Relative tolerance on each limit [-].
+    With every speed of ``s0`` at arc length ``y`` at most this ``c(y)``, the window of the
+    moving average at ``x`` spans at most ``tau`` times its largest ``c``, and that largest
+    ``c`` is then within reach of ``x``, so at most ``cap(x)`` (module docstring, step 3).
+    Found by bisection on ``c``: the minimum over the reach only falls as ``c`` grows.
     """
-    problems = []
-    checks = (('horizontal speed', trajectory.velocities, 'h', max_speed_horizontal, 'm/s'),
-              ('vertical speed', trajectory.velocities, 'z', max_speed_vertical, 'm/s'),
-              ('horizontal acceleration', trajectory.accelerations, 'h', max_accel_horizontal,
-               'm/s^2'),
-              ('vertical acceleration', trajectory.accelerations, 'z', max_accel_vertical,
-               'm/s^2'))
-    for name, vectors, axis, limit, unit in checks:
-        if not len(vectors):
+    low = np.zeros(len(s) - 1)
+    high = caps.levels[0].copy()
+    for _ in range(_REACH_BISECTIONS):
+        trial = 0.5 * (low + high)
+        lo, hi = _within(s, tau * trial)
+        fits = trial <= caps.query(lo, hi)
+        low = np.where(fits, trial, low)
+        high = np.where(fits, high, trial)
+    lo, hi = _within(s, tau * low)
+    return np.minimum(low, caps.query(lo, hi))
+
+
+def _reach_min(s: np.ndarray, values: np.ndarray, radius: np.ndarray) -> np.ndarray:
+    """For each interval, the smallest value of the intervals that reach it.
+
+    Interval ``i`` reaches every interval within ``radius[i]`` of it. The radii are rounded up
+    to :data:`_REACH_LEVELS` geometric levels (reaching further is only more cautious), and
+    each level is one sliding minimum.
+    """
+    out = np.asarray(values, dtype=np.float64).copy()
+    top = float(np.max(radius)) if len(radius) else 0.0
+    if not top > 0.0:
+        return out
+    ladder = top * _REACH_RATIO ** np.arange(_REACH_LEVELS)[::-1]
+    level = np.minimum(np.searchsorted(ladder, radius, side='left'), _REACH_LEVELS - 1)
+    for k in np.unique(level):
+        masked = np.where(level == k, values, np.inf)
+        lo, hi = _within(s, np.full(len(values), ladder[k]))
+        out = np.minimum(out, _MinTable(masked).query(lo, hi))
+    return out
+
+
+def _profile(stations: _Stations, cap: np.ndarray, alpha: np.ndarray, tau: float,
+             start: Optional[StartMotion]) -> Tuple[ArcProfile, float, float]:
+    """The averaged profile (module docstring, steps 2 and 3) and the start it kept."""
+    length = float(stations.s[-1])
+    start_speed, start_accel = 0.0, 0.0
+    history: List[Tuple[float, float, float, float]] = [(-tau, 0.0, 0.0, 0.0)]
+    first, u0 = 0, 0.0
+    s, stop, ds, reach2, back = _passes(stations.s, stations.stop, cap, alpha, None)
+    if start is not None:
+        a = min(max(float(start.accel), -float(alpha[0])), float(alpha[0]))
+        v = float(start.speed)
+        # s0 starts at `launch` with speed `ahead`, so that the mean over the window is at the
+        # start with the vehicle's speed and acceleration. Too fast to brake for the curve: the
+        # largest speed that can (`launch` moves with it, so a few rounds).
+        # The history of s0 over [-tau, 0]: the acceleration the window needs, reached at the
+        # bound alpha over a time d, then constant speed `ahead`: its mean speed is v and
+        # its speed rises by a tau over the window, and `ahead` is as low as that allows.
+        brisk = float(alpha[0])
+        for _ in range(_LAUNCH_ROUNDS):
+            d = min(tau, abs(a) * tau / brisk) if brisk > 0.0 else tau
+            ahead = v + 0.5 * a * d
+            launch = 0.5 * ahead * tau - a * d * d / 6.0
+            if not (0.0 < launch < length and ahead > 0.0):
+                break
+            trial = _passes(stations.s, stations.stop, cap, alpha, launch)
+            j = int(np.searchsorted(trial[0], launch))
+            if np.any(trial[1][1:j]):
+                break   # a corner before the launch point: start from rest
+            # The history's speeds enter the mean while the window covers them: they keep the
+            # caps of the curve up to the launch point too.
+            top = float(np.min(cap[:j]))
+            fastest = max(ahead, ahead - a * tau)
+            if fastest > top * (1.0 + 1e-12):
+                v = max(v - (fastest - top), 0.0) * (1.0 - 1e-9)
+                continue
+            if ahead ** 2 <= trial[4][j] * (1.0 + 1e-12):
+                s, stop, ds, reach2, back = trial
+                first, u0 = j, ahead ** 2
+                start_speed, start_accel = v, a
+                early = launch - v * tau
+                rise = a * tau / d if d > 0.0 else 0.0
+                history = [(-tau, early, ahead - a * tau, rise)]
+                if 0.0 < d < tau:
+                    history.append((-tau + d, early + (ahead - a * tau) * d + 0.5 * rise * d * d,
+                                    ahead, 0.0))
+                stop[:first] = False
+                break
+            v = max(math.sqrt(trial[4][j]) - 0.5 * a * d, 0.0) * (1.0 - 1e-9)
+    u = np.asarray(_forward(back, reach2.tolist(), first, u0))
+    # Where s0 turns from accelerating to braking (or back) at once, its acceleration jumps by
+    # twice alpha, which only the longest window proves; a plateau of tau seconds at the turn
+    # halves the jump, so shorter windows (a smaller lag behind s0) prove the jerk too.
+    for _ in range(_PLATEAU_ROUNDS):
+        level = _plateaus(s, u, first, tau)
+        if not np.any(np.isfinite(level)):
+            break
+        lowered = _backward(np.minimum(back, level).tolist(), reach2.tolist())
+        if u0 > lowered[first] * (1.0 + 1e-12):
+            break   # the moving start could not brake for them: keep the profile as it is
+        back = lowered
+        u = np.asarray(_forward(back, reach2.tolist(), first, u0))
+    v = np.sqrt(np.maximum(u, 0.0))
+    seg_ds = ds[first:]
+    v0, v1 = v[first:-1], v[first + 1:]
+    dt = 2.0 * seg_ds / (v0 + v1)
+    acc = (u[first + 1:] - u[first:-1]) / (2.0 * seg_ds)
+    pos = s[first:-1]
+    # Waits of tau at the stops inside the curve.
+    waits = np.flatnonzero(stop[first + 1:-1])
+    starts_s = np.insert(pos, waits + 1, s[first + 1:-1][waits])
+    speeds = np.insert(v0, waits + 1, 0.0)
+    accels = np.insert(acc, waits + 1, 0.0)
+    durations = np.insert(dt, waits + 1, tau)
+    piece_start = np.r_[0.0, np.cumsum(durations)[:-1]]
+    end_time = float(np.sum(durations))
+    past = np.asarray(history, dtype=np.float64).reshape(-1, 4)
+    profile = profile_from_pieces(np.r_[past[:, 0], piece_start], np.r_[past[:, 1], starts_s],
+                                  np.r_[past[:, 2], speeds], np.r_[past[:, 3], accels],
+                                  end_time, tau, length)
+    return profile, start_speed, start_accel
+
+
+def _jerk_fits(profile: ArcProfile, s: np.ndarray, allowance: '_MinTable') -> bool:
+    """True when ``|s_ttt| = |s0_tt(t) - s0_tt(t - tau)| / tau`` keeps the allowance of every
+    interval the reference passes while it holds.
+
+    Both terms are piecewise constant, so ``s_ttt`` is constant between the merged
+    breakpoints of ``s0`` and of ``s0`` shifted by tau: one evaluation in each of those, held
+    against the smallest allowance of the arc-length range that piece covers. Exact.
+    """
+    tau = profile.window_s
+    breaks = profile.base.x
+    merged = np.unique(np.r_[0.0, breaks, breaks + tau, profile.duration_s])
+    merged = merged[(merged >= 0.0) & (merged <= profile.duration_s)]
+    if len(merged) < 2:
+        return True
+    middle = 0.5 * (merged[:-1] + merged[1:])
+    jerk = np.abs(profile.base(middle, 2) - profile.base(middle - tau, 2)) / tau
+    arc = _arc_at(profile, merged)
+    last = len(s) - 2
+    lo = np.clip(np.searchsorted(s, arc[:-1], side='right') - 1, 0, last)
+    hi = np.clip(np.searchsorted(s, arc[1:], side='left') - 1, 0, last)
+    hi = np.maximum(hi, lo)
+    return bool(np.all(jerk <= allowance.query(lo, hi) * (1.0 + 1e-9)))
+
+
+def _plateaus(s: np.ndarray, u: np.ndarray, first: int, tau: float) -> np.ndarray:
+    """Caps on ``u`` per station that flatten each direct turn of the profile for ``tau``.
+
+    A peak (accelerating, then braking) is cut at the highest level whose stretch above it
+    takes ``tau`` at that speed; a valley (braking, then accelerating) is held at its level
+    for ``tau``. Stretches that reach back to the start (``first``) are left alone.
+    """
+    level = np.full(len(u), np.inf)
+    ds = np.diff(s)
+    acc = np.diff(u) / (2.0 * ds)
+    sign = np.where(np.abs(acc) > 1e-9, np.sign(acc), 0.0)
+    turns = np.flatnonzero(sign[:-1] * sign[1:] < 0.0) + 1
+    last = len(u) - 1
+    for k in turns.tolist():
+        if k <= first + 1:
             continue
-        horizontal, vertical = _split(vectors)
-        values = horizontal if axis == 'h' else vertical
-        worst = int(np.argmax(values))
-        if values[worst] > limit * (1.0 + rtol):
-            problems.append(f'{name} {values[worst]:.6g} {unit} exceeds {limit:g} {unit} at '
-                            f'sample {worst} (t = {trajectory.times[worst]:.3f} s)')
+        if sign[k - 1] < 0.0:
+            height = float(u[k])
+            half = 0.5 * math.sqrt(max(height, 0.0)) * tau
+            lo = int(np.searchsorted(s, s[k] - half, side='left'))
+            hi = int(np.searchsorted(s, s[k] + half, side='right')) - 1
+        else:
+            lo = hi = k
+            height = float(u[k])
+            while s[hi] - s[lo] < math.sqrt(max(height, 0.0)) * tau:
+                left = float(u[lo - 1]) if lo - 1 > first else -math.inf
+                right = float(u[hi + 1]) if hi + 1 <= last else -math.inf
+                if left == right == -math.inf:
+                    break
+                if left >= right:
+                    lo -= 1
+                    height = min(height, left)
+                else:
+                    hi += 1
+                    height = min(height, right)
+        # At (nearly) zero speed there is nothing to flatten: a stop waits tau anyway.
+        if lo <= first or not height > _PLATEAU_MIN_U:
+            continue
+        level[lo:hi + 1] = np.minimum(level[lo:hi + 1], height)
+    return level
+
+
+def _passes(s: np.ndarray, stop: np.ndarray, cap: np.ndarray, alpha: np.ndarray,
+            launch: Optional[float]) -> Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                                              List[float]]:
+    """Stations (with one inserted at ``launch``), stops, steps, ``2 alpha ds`` and the
+    backward limits of ``u``."""
+    if launch is not None:
+        j = int(np.searchsorted(s, launch, side='right')) - 1
+        s = np.insert(s, j + 1, launch)
+        stop = np.insert(stop, j + 1, False)
+        cap = np.insert(cap, j, cap[j])
+        alpha = np.insert(alpha, j, alpha[j])
+    else:
+        stop = stop.copy()
+    ucap = np.minimum(np.r_[cap, np.inf], np.r_[np.inf, cap]) ** 2
+    ucap[stop] = 0.0
+    ucap[-1] = 0.0
+    ds = np.diff(s)
+    reach2 = 2.0 * alpha * ds
+    return s, stop, ds, reach2, _backward(ucap.tolist(), reach2.tolist())
+
+
+def _backward(ucap: List[float], reach2: List[float]) -> List[float]:
+    """Largest ``u`` at each station from which every later cap can still be kept."""
+    back = list(ucap)
+    for j in range(len(back) - 2, -1, -1):
+        back[j] = min(back[j], back[j + 1] + reach2[j])
+    return back
+
+
+def _forward(back: List[float], reach2: List[float], first: int, u0: float) -> List[float]:
+    """Fastest ``u`` from station ``first`` (at ``u0``) within the backward limits."""
+    u = list(back)
+    u[first] = u0
+    for j in range(first, len(u) - 1):
+        u[j + 1] = min(back[j + 1], u[j] + reach2[j])
+    for j in range(first):
+        u[j] = 0.0
+    return u
+
+
+def _times_of(profile: ArcProfile, arc: np.ndarray) -> np.ndarray:
+    """The times at which the averaged profile passes the arc lengths ``arc`` [s]."""
+    duration = profile.duration_s
+    step = profile.window_s / 4.0
+    grid = np.linspace(0.0, duration, max(2, int(math.ceil(duration / step)) + 1))
+    grid_s = _arc_at(profile, grid)
+    grid_s = np.maximum.accumulate(grid_s)
+    right = np.clip(np.searchsorted(grid_s, arc, side='left'), 1, len(grid) - 1)
+    lo, hi = grid[right - 1], grid[right]
+    for _ in range(_BISECTIONS):
+        mid = 0.5 * (lo + hi)
+        below = _arc_at(profile, mid) < arc
+        lo = np.where(below, mid, lo)
+        hi = np.where(below, hi, mid)
+    times = hi
+    times[0] = 0.0
+    times[-1] = duration
+    return times
+
+
+def _arc_at(profile: ArcProfile, t: np.ndarray) -> np.ndarray:
+    tau = profile.window_s
+    return (profile.integral(t) - profile.integral(t - tau)) / tau
+
+
+def _at_rest(smoothed: SmoothedPath, limits: MotionLimits, yaw_mode: str,
+             initial_yaw: Optional[float]) -> TimingResult:
+    """A trajectory of one point (start and goal together)."""
+    count = len(smoothed.positions)
+    zeros = np.zeros((count, 3))
+    yaw = 0.0 if initial_yaw is None else float(initial_yaw)
+    trajectory = Trajectory(times=np.zeros(count), positions=smoothed.positions.copy(),
+                            velocities=zeros, accelerations=zeros.copy(), jerks=zeros.copy(),
+                            yaws=np.full(count, yaw), yaw_rates=np.zeros(count),
+                            reference=None)
+    del limits, yaw_mode
+    return TimingResult(trajectory=trajectory, window_s=0.0, start_speed=0.0,
+                        start_accel=0.0)
+
+
+def check_limits(trajectory: Trajectory, limits: MotionLimits, step_s: float = 0.005,
+                 rtol: float = 1e-6) -> List[str]:
+    """Describe every limit the continuous reference breaks at a ``step_s`` grid of times.
+
+    An empty list means none. The acceleration box of the limits (tilt and thrust included),
+    the jerk norm, the speeds and the yaw rate are checked, each with relative tolerance
+    ``rtol``, and the times of the samples must increase strictly.
+    """
+    box = limits.acceleration_box()
+    peaks = trajectory.peaks(step_s)
+    problems = []
+    checks = (('horizontal speed', peaks.speed_horizontal, limits.speed_horizontal, 'm/s'),
+              ('vertical speed', peaks.speed_vertical, limits.speed_vertical, 'm/s'),
+              ('horizontal acceleration', peaks.accel_horizontal, box.horizontal, 'm/s^2'),
+              ('vertical acceleration', peaks.accel_vertical, box.vertical, 'm/s^2'),
+              ('jerk', peaks.jerk, limits.jerk, 'm/s^3'),
+              ('tilt', peaks.tilt_deg, limits.tilt_deg, 'deg'),
+              ('thrust-to-weight ratio', peaks.thrust_to_weight, limits.thrust_to_weight, ''),
+              ('yaw rate', peaks.yaw_rate, limits.yaw_rate, 'rad/s'))
+    for name, value, limit, unit in checks:
+        if value > limit * (1.0 + rtol):
+            problems.append(f'{name} {value:.6g} {unit} exceeds {limit:g} {unit}'.rstrip())
     times = trajectory.times
     if len(times) > 1 and not np.all(np.diff(times) > 0.0):
         problems.append('times are not strictly increasing')
     return problems
+
+
+__all__ = ['MIN_ALPHA_SHARE', 'StartMotion', 'TimingResult',
+           'time_parameterize', 'check_limits', 'YawProfile']

@@ -20,7 +20,9 @@ from typing import List, Optional, Sequence, Tuple
 import numpy as np
 
 from uav_global_planner.core.result import PlanResult
-from uav_global_planner.ros.conversions.plans import pose_stamps_ns, require_trajectory
+from uav_global_planner.ros.conversions.plans import (pose_stamps_ns, require_trajectory,
+                                                      trajectory_points,
+                                                      TRAJECTORY_SAMPLE_PERIOD)
 from uav_global_planner.ros.conversions.poses import pose_array
 from uav_global_planner.ros.conversions.stamps import seconds_to_ns
 
@@ -170,25 +172,25 @@ def serialized_unsmoothed_path(result: PlanResult, frame_id: str, stamp_ns: int,
 
 def serialized_trajectory(result: PlanResult, frame_id: str, stamp_ns: int,
                           goal_orientation: Optional[Sequence[float]] = None,
-                          joint_name: str = 'base_link') -> bytes:
+                          joint_name: str = 'base_link',
+                          sample_period: float = TRAJECTORY_SAMPLE_PERIOD) -> bytes:
     """CDR bytes of :func:`conversions.plan_to_trajectory`."""
-    trajectory = require_trajectory(result)
-    poses = pose_array(trajectory.positions, goal_orientation)
-    count = len(poses)
-    sec, nanosec = _split_ns(seconds_to_ns(trajectory.times))
+    points = trajectory_points(require_trajectory(result), sample_period, goal_orientation)
+    count = len(points['times'])
+    sec, nanosec = _split_ns(seconds_to_ns(points['times']))
     ones = np.ones(count, dtype=np.uint32)
     columns = {'n_transforms': ones, 'n_velocities': ones, 'n_accelerations': ones,
                'sec': sec, 'nanosec': nanosec}
-    velocities = np.asarray(trajectory.velocities, dtype=np.float64).reshape(-1, 3)
-    accelerations = np.asarray(trajectory.accelerations, dtype=np.float64).reshape(-1, 3)
+    zeros = np.zeros(count)
     for index, axis in enumerate('xyz'):
-        columns[f't{axis}'] = poses[:, index]
-        columns[f'v{axis}'] = velocities[:, index]
-        columns[f'a{axis}'] = accelerations[:, index]
-        # Angular parts stay zero: the planner does not time the heading.
-        columns[f'w{axis}'] = columns[f'b{axis}'] = np.zeros(count)
+        columns[f't{axis}'] = points['positions'][:, index]
+        columns[f'v{axis}'] = points['velocities'][:, index]
+        columns[f'a{axis}'] = points['accelerations'][:, index]
+        # Angular acceleration stays zero; the angular velocity is the yaw rate about z.
+        columns[f'w{axis}'] = columns[f'b{axis}'] = zeros
+    columns['wz'] = points['yaw_rates']
     for index, name in enumerate(('qx', 'qy', 'qz', 'qw')):
-        columns[name] = poses[:, 3 + index]
+        columns[name] = points['quaternions'][:, index]
     fields: List[Field] = [('n_transforms', 'u4')]
     fields += [(name, 'f8') for name in ('tx', 'ty', 'tz', 'qx', 'qy', 'qz', 'qw')]
     fields += [('n_velocities', 'u4')]

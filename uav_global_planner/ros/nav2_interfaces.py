@@ -20,7 +20,12 @@ cancel requests, topics and parameters are served while one runs.
 Semantics, as Nav2's planner server:
 
 - ``use_start`` false: plan from the node's current start (the latest ``odom``/``start_pose``,
-  else the ``start`` parameter); true: from ``start``.
+  else the ``start`` parameter); true: from ``start``. While the vehicle flies (odometry
+  moving, along the plan in force or not), an action's plan continues its motion as the node's
+  own plans do: it starts from the predicted state at the takeover time and is stamped with it
+  (:mod:`~uav_global_planner.ros.takeover`); a ``start`` within
+  :data:`~uav_global_planner.ros.takeover.FOLLOW_DISTANCE_M` of the vehicle counts as the
+  vehicle. ``get_plan`` answers a query: from rest, as before.
 - ``planner_id``: '' is the ``algorithm`` parameter; an algorithm name picks that heuristic;
   anything else is ``INVALID_PLANNER`` (201 / 301).
 - The result's ``path`` is the smoothed, timed path (as on ``plan``, which a successful action
@@ -71,6 +76,7 @@ from uav_global_planner.core.status import (NAV2_CODE_BY_STATUS, NAV2_INVALID_PL
 from uav_global_planner.ros import conversions as conv
 from uav_global_planner.ros.plan_writer import startup_plan_writer
 from uav_global_planner.ros.start_source import StartSource
+from uav_global_planner.ros.takeover import Settlement, START_REFUSALS, Takeover
 
 try:
     from nav2_msgs.action import ComputePathThroughPoses, ComputePathToPose
@@ -88,6 +94,11 @@ GET_PLAN_SERVICE = 'get_plan'
 THROUGH_POSES_OFFSET = 100
 #: ComputePathThroughPoses: the goal list is empty.
 NAV2_NO_VIAPOINTS_GIVEN = 309
+
+#: Plans of one request made again because they could not take over as predicted (late, the
+#: plan in force replaced, the vehicle off the prediction); the last one is published anyway,
+#: with a WARN naming the jump.
+MAX_TAKEOVER_REPLANS = 2
 
 #: ``error_msg`` of a goal that a newer goal on the same action replaced.
 PREEMPTED_TEXT = 'preempted by a newer goal'
@@ -125,6 +136,15 @@ class PlanHost(Protocol):
 
     def current_settings(self) -> Any:
         """The node's settings in force (``frame_id``, ``config``)."""
+
+    def predict_takeover(self, snapshot: Any, request_start: Optional[np.ndarray]) -> Takeover:
+        """On the worker: the state a plan beginning now starts from (the vehicle's predicted
+        state when it flies, else rest at the start; a request's start near the vehicle counts
+        as the vehicle)."""
+
+    def settle_takeover(self, takeover: Takeover, result: PlanResult) -> Settlement:
+        """On the worker, just before publishing: the stamp of a successful plan from
+        ``takeover``, and why it should not go out as it is."""
 
 
 # --------------------------------------------------------------------------------------------
@@ -512,17 +532,30 @@ class PlannerInterfaces:
         else:
             start, source = snapshot.start, snapshot.start_source
         started = time.perf_counter()
-        result = planner.plan(
-            start, request.goal, request.algorithm, via=request.via,
-            cancel=request.cancel.is_set,
-            progress=lambda *report: self._progress(request, snapshot, *report))
+        settlement: Optional[Settlement] = None
+        for attempt in range(MAX_TAKEOVER_REPLANS + 1):
+            # A published plan continues the vehicle's motion (ros/takeover.py); a GetPlan
+            # query starts from rest, as it always did.
+            takeover = (self._host.predict_takeover(snapshot, request.start) if request.publish
+                        else None)
+            result, takeover, takeover_note = self._plan_from(request, planner, snapshot, start,
+                                                              takeover)
+            if takeover is not None and result.ok:
+                # Also from rest: it measures the latency.
+                settlement = self._host.settle_takeover(takeover, result)
+                if (settlement.problem and settlement.retry and attempt < MAX_TAKEOVER_REPLANS
+                        and not request.cancel.is_set()):
+                    self._report_retake(request, settlement)
+                    continue
+            break
         goal_used = request.goal
-        note = ''
+        note = takeover_note
         if result.status is PlanStatus.GOAL_OCCUPIED and request.tolerance > 0.0:
             result, goal_used, note = self._plan_within_tolerance(request, planner, start,
                                                                   result)
         elapsed = time.perf_counter() - started
-        stamp_ns = self._node.get_clock().now().nanoseconds
+        stamp_ns = (settlement.stamp_ns if settlement is not None
+                    else self._node.get_clock().now().nanoseconds)
         frame = snapshot.settings.frame_id
         path = None
         if result.ok:
@@ -536,8 +569,46 @@ class PlannerInterfaces:
         failed_leg = getattr(result, 'failed_leg', -1)
         if failed_leg >= 0 and 'leg' not in message:
             message = f'leg {failed_leg}: {message}'
-        self._report(request, result, source, stamp_ns, elapsed, note, message)
+        extra: Dict[str, object] = {} if takeover is None else takeover.values()
+        if settlement is not None:
+            extra.update(settlement.values())
+            if settlement.problem:
+                message += f'; takeover: {settlement.problem}'
+        self._report(request, result, source, stamp_ns, elapsed, note, message, extra)
         return _Outcome(result, result.status, message, elapsed, path, goal_used)
+
+    def _plan_from(self, request: _Request, planner, snapshot, start: np.ndarray,
+                   takeover: Optional[Takeover]
+                   ) -> Tuple[PlanResult, Optional[Takeover], str]:
+        """Plan a request from the takeover state (from ``start`` at rest when there is none);
+        a predicted state the planner refuses as a start is replaced by ``start`` at rest."""
+        moving = takeover is not None and takeover.moving
+        result = planner.plan(
+            takeover.position if takeover is not None and moving else start, request.goal,
+            request.algorithm, via=request.via, cancel=request.cancel.is_set,
+            progress=lambda *report: self._progress(request, snapshot, *report),
+            **(takeover.plan_arguments(planner.plan) if takeover is not None else {}))
+        if not (takeover is not None and moving and result.status in START_REFUSALS):
+            return result, takeover, ''
+        note = (f'the predicted takeover state at {np.round(takeover.position, 3).tolist()} '
+                f'cannot start a plan ({result.message}); planned from rest instead')
+        self._log.warning(f'{request.kind} request: {note}')
+        result = planner.plan(
+            start, request.goal, request.algorithm, via=request.via,
+            cancel=request.cancel.is_set,
+            progress=lambda *report: self._progress(request, snapshot, *report))
+        return result, takeover.from_rest(start), note
+
+    def _report_retake(self, request: _Request, settlement: Settlement) -> None:
+        """A request's plan that cannot take over as predicted: dropped, planned again."""
+        text = (f'{request.kind} request: plan discarded: {settlement.problem}; planning again '
+                'from a newer prediction')
+        self._log.info(text)
+        values: Dict[str, object] = {'event': 'plan_discarded', 'status': 'discarded',
+                                     'reason': text, 'goal': request.goal}
+        values.update(settlement.values())
+        self._host.publish_diagnostics(self._node.get_clock().now().nanoseconds,
+                                       DiagnosticStatus.WARN, text, values)
 
     def _plan_within_tolerance(self, request: _Request, planner, start,
                                first: PlanResult) -> Tuple[PlanResult, np.ndarray, str]:
@@ -573,7 +644,8 @@ class PlannerInterfaces:
                                        DiagnosticStatus.OK, text, values)
 
     def _report(self, request: _Request, result: PlanResult, source: str, stamp_ns: int,
-                elapsed_s: float, note: str, message: str) -> None:
+                elapsed_s: float, note: str, message: str,
+                extra: Optional[Mapping[str, object]] = None) -> None:
         reason = f'{request.kind} request'
         through = request.kind == THROUGH_POSES_ACTION
         code = result_code(result.status, through)
@@ -600,6 +672,9 @@ class PlannerInterfaces:
             values['tolerance_m'] = request.tolerance
         if note:
             values['note'] = note
+        values.update(extra or {})
+        if result.ok and 'takeover_problem' in values:
+            level = DiagnosticStatus.WARN
         self._host.publish_diagnostics(stamp_ns, level, f'{result.status.value}: {message}',
                                        values)
 

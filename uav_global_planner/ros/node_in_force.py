@@ -38,15 +38,25 @@ class PlanInForce:
         # Serialised from the arrays: the messages of conv.plan_to_path and friends, without
         # building hundreds of message objects (milliseconds per plan).
         writer = self._plan_writer
+        period = self._current_settings().trajectory_sample_period
         with self._publish_lock:
             plan = writer.plan_path(result, frame, stamp_ns, orientation)
             self._plan_pub.publish(plan)
             self._unsmoothed_pub.publish(
                 writer.unsmoothed_path(result, frame, stamp_ns, orientation))
-            self._trajectory_pub.publish(writer.trajectory(result, frame, stamp_ns, orientation))
+            self._trajectory_pub.publish(writer.trajectory(result, frame, stamp_ns, orientation,
+                                                           sample_period=period))
             self._latched = result
+            # A plan stamped ahead (a replan in flight) takes over at its stamp: until then
+            # the vehicle flies the one before, which a replan meanwhile must continue.
+            previous = self._in_force
+            now_ns = self.node.get_clock().now().nanoseconds
+            if previous is not None and (stamp_ns <= now_ns or previous.frame_id != frame):
+                previous = None
+            if previous is not None and previous.stamp_ns <= now_ns:
+                previous.previous = None
             self._in_force = InForce(result, frame, stamp_ns, start_source, checked_version,
-                                     goal_serial)
+                                     goal_serial, previous)
         with self._wake:
             # Only a plan for the active goal is replanned once the vehicle's position arrives.
             self._in_force_source = start_source if goal_serial is not None else None

@@ -2,7 +2,8 @@
 
 A mixin of :class:`~uav_global_planner.ros.planner_node.PlannerNode`, run on the executor:
 ``goal_pose`` sets the active goal (refused while the map is missing), ``odom`` and
-``start_pose`` the start; a refused message keeps the previous state and is reported on the
+``start_pose`` the start (the twist and heading of ``odom`` also go to the takeover predictor,
+for replans in flight); a refused message keeps the previous state and is reported on the
 log and ``/diagnostics``.
 """
 
@@ -19,6 +20,7 @@ from uav_global_planner.ros import conversions as conv
 from uav_global_planner.ros.node_state import Goal
 from uav_global_planner.ros.parameters import MAP_SOURCES, NodeSettings
 from uav_global_planner.ros.start_source import StartSource
+from uav_global_planner.ros.takeover import odometry_velocity
 
 #: Diagnostics status of a goal refused because the map is missing.
 NO_MAP_STATUS = 'no_map'
@@ -86,11 +88,23 @@ class CommandInputs:
 
     def _on_odom(self, msg: Odometry) -> None:
         topic = self._odom_sub.topic_name
+        frame = self._current_settings().frame_id
         try:
-            position = conv.odometry_to_point(msg, self._current_settings().frame_id, topic)
+            position = conv.odometry_to_point(msg, frame, topic)
         except InvalidInputError as error:
             self._refuse(topic, error, throttle=True)
             return
+        # The twist and heading feed replans in flight (ros/takeover.py); a non-finite twist
+        # only leaves the velocity unknown.
+        try:
+            velocity: Optional[np.ndarray] = odometry_velocity(msg, frame, topic)
+        except InvalidInputError:
+            velocity = None
+        try:
+            yaw = conv.quaternion_yaw(conv.quaternion_to_array(msg.pose.pose.orientation, topic))
+        except InvalidInputError:
+            yaw = 0.0
+        self._takeover.on_odometry(position, velocity, yaw)
         self._set_start(position, StartSource.ODOM)
 
     def _on_start_pose(self, msg: PoseStamped) -> None:

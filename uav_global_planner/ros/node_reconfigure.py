@@ -124,6 +124,7 @@ class ParameterHandling:
             self._inbox.frame_reset = self._inbox.frame_reset or frame_changed
             self._intake_cv.notify_all()
         if frame_changed:
+            self._takeover.forget_odometry()
             self._log.warning(f'frame_id changed to {settings.frame_id!r}: obstacles, '
                               'start and goal cleared; republish them in the new frame')
             # A plan in the old frame must not stay in force.

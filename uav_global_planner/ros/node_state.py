@@ -101,7 +101,12 @@ class SourceState:
 
 @dataclass
 class InForce:
-    """The plan latched on ``plan`` (guarded by the publish lock)."""
+    """The plan latched on ``plan`` (guarded by the publish lock).
+
+    ``stamp_ns`` is the plan's time 0 (its header stamp). A plan that takes over in the future
+    keeps the plan it replaces as ``previous``: until its stamp the vehicle still flies that
+    one (:meth:`flown_at`).
+    """
 
     result: PlanResult
     frame_id: str
@@ -109,6 +114,15 @@ class InForce:
     start_source: StartSource
     checked_version: int
     goal_serial: Optional[int] = None     # None: a Nav2 request's plan
+    previous: Optional['InForce'] = None
+
+    def flown_at(self, at_ns: int) -> 'InForce':
+        """The plan the vehicle flies at ``at_ns`` [ns]: this one from its stamp on, before
+        that the one it replaces."""
+        plan = self
+        while plan.previous is not None and at_ns < plan.stamp_ns:
+            plan = plan.previous
+        return plan
 
 
 @dataclass

@@ -3,10 +3,13 @@
 A mixin of :class:`~uav_global_planner.ros.planner_node.PlannerNode`. The worker takes a
 snapshot of the settings, map, start and goal when a plan begins (whatever arrives meanwhile is
 coalesced into at most one follow-up plan), plans, and publishes only a plan that keeps gamma
-from the newest map and still starts where the vehicle is; the Nav2 interfaces run their
+from the newest map and still starts where the vehicle is (a plan made in flight starts where
+the vehicle will be when it takes over, and is stamped with that time:
+:mod:`~uav_global_planner.ros.takeover`); the Nav2 interfaces run their
 requests on it too (:meth:`PlanningWorker.submit`).
 """
 
+from dataclasses import replace
 import traceback
 from typing import Any, Callable, Dict, Optional, Tuple
 
@@ -23,6 +26,8 @@ from uav_global_planner.ros.nav2_interfaces import nearest_free_node
 from uav_global_planner.ros.node_state import Goal, Snapshot
 from uav_global_planner.ros.parameters import NodeSettings
 from uav_global_planner.ros.start_source import StartSource
+from uav_global_planner.ros.takeover import (FOLLOW_DISTANCE_M, Settlement, START_REFUSALS,
+                                             Takeover)
 
 #: Consecutive plans dropped because the vehicle moved away from their start while they were
 #: computed; after that many the plan is published anyway (with a note), so a slow plan behind
@@ -239,16 +244,70 @@ class PlanningWorker:
         room = 1e-4 * planner.config.resolution
         return float(planner.obstacles.distance(point)) > gamma + room
 
+    def predict_takeover(self, snap: Snapshot,
+                         request_start: Optional[np.ndarray] = None) -> Takeover:
+        """The start state of a plan beginning now (worker only; see ros/takeover.py).
+
+        A request's own start counts as the vehicle when it lies within
+        :data:`~uav_global_planner.ros.takeover.FOLLOW_DISTANCE_M` of the vehicle's newest
+        odometry position; anywhere else the plan starts there from rest.
+        """
+        with self._wake:
+            start, source = self._start, self._start_source
+        if start is None:
+            start, source = snap.start, snap.start_source
+        with self._publish_lock:
+            in_force = self._in_force
+        if request_start is not None and (
+                source != StartSource.ODOM
+                or float(np.linalg.norm(request_start - start)) > FOLLOW_DISTANCE_M):
+            return self._takeover.at_rest(request_start)
+        return self._takeover.predict(start, source, in_force)
+
+    def settle_takeover(self, takeover: Takeover, result: PlanResult) -> Settlement:
+        """How a successful plan from ``takeover`` goes out now: its stamp, and why it should
+        not (worker only; call it just before publishing)."""
+        # The publish lock before the node's lock, as everywhere.
+        with self._publish_lock:
+            with self._wake:
+                vehicle = (self._start if self._start_source != StartSource.PARAMETER
+                           else None)
+                distance = self._settings.start_replan_distance
+            return self._takeover.settle(takeover, result.trajectory, self._in_force, vehicle,
+                                         distance)
+
+    def _plan_from(self, takeover: Takeover, start: np.ndarray, goal: Goal,
+                   settings: NodeSettings) -> Tuple[PlanResult, Takeover, str]:
+        """Plan ``goal`` from the takeover state (from ``start`` at rest when it is none); a
+        predicted state the planner refuses as a start is replaced by a start from rest."""
+        planner = self._planner
+        result = planner.plan(
+            takeover.position if takeover.moving else start, goal.position,
+            cancel=self._cancel_test(goal, settings),
+            progress=lambda *report: self._report_progress(goal, settings, *report),
+            **takeover.plan_arguments(planner.plan))
+        if not (takeover.moving and result.status in START_REFUSALS):
+            return result, takeover, ''
+        note = (f'the predicted takeover state at {np.round(takeover.position, 3).tolist()} '
+                f'cannot start a plan ({result.message}); planned from rest instead')
+        self._log.warning(note)
+        takeover = takeover.from_rest(start)
+        result = planner.plan(
+            start, goal.position, cancel=self._cancel_test(goal, settings),
+            progress=lambda *report: self._report_progress(goal, settings, *report))
+        return result, takeover, note
+
     def _plan(self, snap: Snapshot, goal: Goal, reason: str) -> None:
         settings = snap.settings
         self._replan_reason = None
+        takeover = self.predict_takeover(snap)
         start, start_note = self._admissible_start(snap.start, settings)
+        fallback_builds = self._planner.fallback_builds
+        result, takeover, takeover_note = self._plan_from(takeover, start, goal, settings)
+        if takeover.moving:
+            start_note = ''    # the plan starts at the predicted state, not at snap.start
         if start_note:
             self._log.info(start_note)
-        fallback_builds = self._planner.fallback_builds
-        result = self._planner.plan(
-            start, goal.position, cancel=self._cancel_test(goal, settings),
-            progress=lambda *report: self._report_progress(goal, settings, *report))
         if self._planner.fallback_builds != fallback_builds and self._grid_from_map:
             # This map needed the conservative grid: from now on the intake keeps it up to
             # date too, so later plans do not inflate it (a second or so on a large map).
@@ -259,6 +318,7 @@ class PlanningWorker:
         checked = (snap.obstacles_version, snap.obstacles_stamp_ns)
         frame = settings.frame_id
         drift_note = ''
+        settlement: Optional[Settlement] = None
         with self._publish_lock:
             with self._wake:
                 newest = (self._map, self._obstacles_stamp_ns)
@@ -271,7 +331,18 @@ class PlanningWorker:
                     self._discard(snap, goal, newest[0].version, newest[1])
                     return
                 checked = (newest[0].version, newest[1])
-            if result.ok and vehicle is not None and snap.start_source != StartSource.PARAMETER:
+            if result.ok and takeover.moving:
+                settlement = self.settle_takeover(takeover, result)
+                if settlement.problem and settlement.retry and goal_current:
+                    if self._drift_replans < _MAX_DRIFT_REPLANS:
+                        self._drift_replans += 1
+                        self._retake(snap, goal, settlement)
+                        return
+                    settlement = replace(settlement, problem=(
+                        f'{settlement.problem} ({_MAX_DRIFT_REPLANS} replans in a row); '
+                        'published'))
+            elif (result.ok and vehicle is not None
+                  and snap.start_source != StartSource.PARAMETER):
                 moved = float(np.linalg.norm(vehicle - snap.start))
                 limit = settings.start_replan_distance
                 if limit > 0.0 and moved > limit and goal_current:
@@ -281,7 +352,10 @@ class PlanningWorker:
                         return
                     drift_note = (f'the vehicle moved {moved:.2f} m from the start while '
                                   f'planning ({_MAX_DRIFT_REPLANS} replans in a row); published')
-            stamp_ns = self.node.get_clock().now().nanoseconds
+            if result.ok and settlement is None:
+                settlement = self.settle_takeover(takeover, result)    # records the latency
+            stamp_ns = (settlement.stamp_ns if settlement is not None
+                        else self.node.get_clock().now().nanoseconds)
             self._last_result, self._last_goal_serial = result, goal.serial
             if result.ok:
                 self._drift_replans = 0
@@ -295,18 +369,28 @@ class PlanningWorker:
                 # that subscribes later, must not fly it. Empty messages withdraw it.
                 self._withdraw_plan(frame, stamp_ns)
                 withdrawn = True
+        takeover_problem = settlement.problem if settlement is not None else ''
         if result.ok:
-            level = DiagnosticStatus.OK
+            level = DiagnosticStatus.WARN if takeover_problem else DiagnosticStatus.OK
+            continued = ''
+            if takeover.moving:
+                continued = (f', continuing the {takeover.kind.value.replace("_", " ")} from '
+                             f'{takeover.latency_s:.3f} s ahead')
             self._log.info(
                 f'plan ({reason}): {result.smoothed_length_m:.2f} m smoothed, '
                 f'{result.expanded_nodes} nodes expanded in {result.planning_time_s:.3f} s, '
-                f'min clearance {result.min_clearance_m:.3f} m, start from {snap.start_source}')
+                f'min clearance {result.min_clearance_m:.3f} m, start from {snap.start_source}'
+                + continued)
+            if takeover_problem:
+                self._log.warning(f'plan ({reason}): {takeover_problem}')
         else:
             level = DiagnosticStatus.ERROR
             self._log.warning(f'no plan ({reason}): {result.status.value} '
                               f'(code {NAV2_CODE_BY_STATUS[result.status]}): {result.message}')
         map_values = self._map_values(snap.map)
         message = result.message
+        if takeover_problem:
+            message += f'; takeover: {takeover_problem}'
         if result.ok and map_values['map_refused']:
             # The map holds older data of a source whose newest message was refused: say so.
             level = DiagnosticStatus.WARN
@@ -332,6 +416,14 @@ class PlanningWorker:
             values['map_mask_time_s'] = snap.map.update.time_s
         if drift_note:
             values['note'] = drift_note
+        values.update(takeover.values())
+        if settlement is not None:
+            values.update(settlement.values())
+        if takeover_note:
+            values['takeover_note'] = takeover_note
+        for key in ('handover_velocity_error', 'handover_accel_error'):
+            if hasattr(result, key):
+                values[key] = getattr(result, key)
         values.update(map_values)
         self._publish_diagnostics(stamp_ns, level, f'{result.status.value}: {message}',
                                   values)
@@ -392,6 +484,20 @@ class PlanningWorker:
                 'planning again from the newest position')
         self._drop_plan(snap, goal, 'the vehicle moved away from the start while planning', text,
                         {'goal': goal.position, 'start': snap.start})
+        with self._wake:
+            # Nothing else may wake the worker: ask for the replan explicitly.
+            self._replan_request = self._replan_reason
+            self._wake.notify_all()
+        self._replan_reason = None
+
+    def _retake(self, snap: Snapshot, goal: Goal, settlement: Settlement) -> None:
+        """Drop a plan that cannot take over as predicted (late, the plan in force replaced,
+        the vehicle off the prediction); plan again from a newer prediction
+        (``event: plan_discarded``, WARN)."""
+        text = f'plan discarded: {settlement.problem}; planning again from a newer prediction'
+        extra: Dict[str, Any] = {'goal': goal.position}
+        extra.update(settlement.values())
+        self._drop_plan(snap, goal, 'the predicted takeover did not hold', text, extra)
         with self._wake:
             # Nothing else may wake the worker: ask for the replan explicitly.
             self._replan_request = self._replan_reason

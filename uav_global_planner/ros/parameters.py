@@ -73,6 +73,9 @@ NODE_SETTINGS: Tuple[Setting, ...] = (
             'best_effort (for best-effort sensor publishers; clouds may be lost). Read at '
             'start-up.',
             choices=tuple(CLOUD_QOS_BY_RELIABILITY), read_only=True),
+    Setting('trajectory_sample_period', Kind.FLOAT, 0.05, 'trajectory sample period',
+            'Time between the points of the trajectory message, sampled from the continuous '
+            'reference.', 's', 0.0, 10.0, low_open=True),
     Setting('plan_without_map', Kind.BOOL, False, 'planning without a map',
             'Plan goals before any map source has delivered (open air). By default such a '
             'goal is refused with the reason, as planning through an unknown map would be '
@@ -168,6 +171,8 @@ class NodeSettings:
         [m], 0 = none.
     cloud_qos_reliability : str
         ``'reliable'`` or ``'best_effort'``.
+    trajectory_sample_period : float
+        [s]
     plan_without_map : bool
     required_map_sources : tuple of str
         ``('any',)`` or a subset of :data:`MAP_SOURCES`.
@@ -191,6 +196,7 @@ class NodeSettings:
     map_file: str = ''
     map_downsample: float = 0.0
     cloud_qos_reliability: str = 'reliable'
+    trajectory_sample_period: float = 0.05
     plan_without_map: bool = False
     required_map_sources: Tuple[str, ...] = ('any',)
     start_tolerance: float = 0.5

@@ -24,7 +24,8 @@ from uav_global_planner.ros import cdr
 from uav_global_planner.ros import conversions as conv
 
 #: Serialiser of one plan message: (result, frame_id, stamp_ns, goal_orientation) -> bytes.
-Serialise = Callable[[PlanResult, str, int, Optional[Sequence[float]]], bytes]
+# (result, frame_id, stamp_ns, goal_orientation, **options such as sample_period) -> bytes
+Serialise = Callable[..., bytes]
 
 
 class PlanWriter:
@@ -53,8 +54,8 @@ class PlanWriter:
 
 def _by_rclpy(build: Callable[..., Any]) -> Serialise:
     def serialise(result: PlanResult, frame_id: str, stamp_ns: int,
-                  goal_orientation: Optional[Sequence[float]] = None) -> bytes:
-        return serialize_message(build(result, frame_id, stamp_ns, goal_orientation))
+                  goal_orientation: Optional[Sequence[float]] = None, **options: Any) -> bytes:
+        return serialize_message(build(result, frame_id, stamp_ns, goal_orientation, **options))
     return serialise
 
 
@@ -64,8 +65,10 @@ def check_plan() -> PlanResult:
                           [1.5, 1.25, 1.75], [1.5, 2.0, 2.0]])
     times = np.array([0.0, 0.37, 1.123456789, 1.9, 2.5])
     velocities = np.gradient(positions, times, axis=0)
+    yaws = np.array([0.0, 0.3, -2.9, 3.1, 1.0])
     trajectory = Trajectory(times=times, positions=positions, velocities=velocities,
-                            accelerations=np.gradient(velocities, times, axis=0))
+                            accelerations=np.gradient(velocities, times, axis=0),
+                            yaws=yaws, yaw_rates=np.gradient(yaws, times))
     return PlanResult(status=PlanStatus.OK, message='check', algorithm='check',
                       start=positions[0], goal=positions[-1], path=positions[[0, 2, 4]],
                       trajectory=trajectory)

@@ -11,7 +11,9 @@ name                      type                            notes
 ``obstacle_cloud`` (in)   sensor_msgs/PointCloud2         occupied points, replaces the last
                                                           cloud; reliable (or best effort)
 ``odom`` (in)             nav_msgs/Odometry               start position (latest of odom and
-``start_pose`` (in)       geometry_msgs/PoseStamped       start_pose; else the ``start`` parameter)
+``start_pose`` (in)       geometry_msgs/PoseStamped       start_pose; else the ``start``
+                                                          parameter); odom's twist for replans
+                                                          in flight
 ``plan`` (out)            nav_msgs/Path                   smoothed, time-stamped; transient local
 ``unsmoothed_plan`` (out) nav_msgs/Path                   grid nodes; transient local
 ``trajectory`` (out)      MultiDOFJointTrajectory         positions, velocities, accelerations
@@ -35,6 +37,11 @@ Three threads share the work:
   into at most one follow-up plan. A newer goal or changed settings cancel a running plan; a
   new map does not: the finished plan is checked against the newest map before it is published
   (``event: plan_discarded`` when it collides, and it is made again on that map).
+
+A plan made while the vehicle flies the plan in force continues it: it starts from the state
+the plan in force will have when the new plan is published (planning latency predicted) and is
+stamped with that time, so that a follower switches without a jump
+(:mod:`~uav_global_planner.ros.takeover`).
 
 The diagnostics of a plan name the map it was computed on (``obstacles_version``, and
 ``obstacles_stamp``: the header stamp of the map message that last changed the obstacles), the
@@ -97,6 +104,7 @@ from uav_global_planner.ros.plan_writer import startup_plan_writer
 from uav_global_planner.ros.qos import (CLOUD_QOS_BY_RELIABILITY, COMMAND_QOS, DIAGNOSTICS_QOS,
                                         LATCHED_QOS, OBSTACLES_QOS, SENSOR_QOS)
 from uav_global_planner.ros.start_source import StartSource
+from uav_global_planner.ros.takeover import TakeoverPredictor
 
 #: Marker-publishing check period [s]: markers go out only when someone subscribes.
 _MARKER_PERIOD_S = 0.5
@@ -134,6 +142,8 @@ class PlannerNode(ParameterHandling, CommandInputs, MapIntake, PlanInForce, Plan
     def __init__(self, node_name: str = NODE_NAME, **node_options: Any) -> None:
         self.node = Node(node_name, **node_options)
         self._log = self.node.get_logger()
+        # Latency estimate, newest odometry motion and takeover predictions (own lock).
+        self._takeover = TakeoverPredictor(lambda: self.node.get_clock().now().nanoseconds)
         # Checked once per process: CDR bytes only when rclpy reads them back right.
         self._plan_writer = startup_plan_writer(self._log)
         self._param_values = declare_parameters(self.node)

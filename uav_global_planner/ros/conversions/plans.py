@@ -6,7 +6,7 @@ plus the pose's time from the start (:func:`pose_stamps_ns`). :mod:`uav_global_p
 writes the same messages as bytes from the same arrays.
 """
 
-from typing import Optional, Sequence
+from typing import Dict, Optional, Sequence
 
 from builtin_interfaces.msg import Duration
 from geometry_msgs.msg import Quaternion, Transform, Twist
@@ -71,27 +71,75 @@ def plan_to_unsmoothed_path(result: PlanResult, frame_id: str, stamp_ns: int,
     return points_to_path(result.path, frame_id, stamp_ns, None, goal_orientation)
 
 
+#: Default time step of the ``trajectory`` message's points [s].
+TRAJECTORY_SAMPLE_PERIOD = 0.05
+
+
+def trajectory_points(trajectory: Trajectory, period: float,
+                      goal_orientation: Optional[Sequence[float]] = None) -> Dict[str, np.ndarray]:
+    """The ``trajectory`` message's points as arrays, one row per point.
+
+    A trajectory with a continuous reference is sampled every ``period`` seconds (the last
+    point at its end); one rebuilt from samples keeps its own samples. The rotation is the
+    reference's heading (yaw about +z, ENU) where the trajectory has one, else the heading
+    along the path as in the ``plan`` message.
+
+    Returns
+    -------
+    dict of numpy.ndarray
+        ``times`` (N,) [s], ``positions`` (N, 3) [m], ``quaternions`` (N, 4) (x, y, z, w),
+        ``velocities`` (N, 3) [m/s], ``yaw_rates`` (N,) [rad/s], ``accelerations`` (N, 3)
+        [m/s^2].
+    """
+    if trajectory.reference is not None:
+        trajectory = trajectory.sampled(period)
+    count = len(trajectory.times)
+    if trajectory.yaws is not None:
+        half = 0.5 * np.asarray(trajectory.yaws, dtype=np.float64)
+        quaternions = np.zeros((count, 4))
+        quaternions[:, 2] = np.sin(half)
+        quaternions[:, 3] = np.cos(half)
+    else:
+        quaternions = pose_array(trajectory.positions, goal_orientation)[:, 3:]
+    rates = (np.zeros(count) if trajectory.yaw_rates is None
+             else np.asarray(trajectory.yaw_rates, dtype=np.float64))
+    return {'times': np.asarray(trajectory.times, dtype=np.float64),
+            'positions': np.asarray(trajectory.positions, dtype=np.float64).reshape(-1, 3),
+            'quaternions': quaternions,
+            'velocities': np.asarray(trajectory.velocities, dtype=np.float64).reshape(-1, 3),
+            'yaw_rates': rates,
+            'accelerations': np.asarray(trajectory.accelerations,
+                                        dtype=np.float64).reshape(-1, 3)}
+
+
 def plan_to_trajectory(result: PlanResult, frame_id: str, stamp_ns: int,
                        goal_orientation: Optional[Sequence[float]] = None,
-                       joint_name: str = 'base_link') -> MultiDOFJointTrajectory:
-    """``MultiDOFJointTrajectory`` with one joint: positions, yaw, velocities, accelerations.
+                       joint_name: str = 'base_link',
+                       sample_period: float = TRAJECTORY_SAMPLE_PERIOD) -> MultiDOFJointTrajectory:
+    """``MultiDOFJointTrajectory`` with one joint, a point every ``sample_period`` seconds.
 
-    Angular velocities and accelerations are zero: the planner does not time the heading.
+    Each point has the position and heading (transform), the velocity and yaw rate (twist:
+    linear, angular z) and the acceleration (linear; angular zero) of the continuous
+    reference, in the planning frame (ENU), at ``time_from_start``.
     """
-    trajectory = require_trajectory(result)
-    poses = pose_array(trajectory.positions, goal_orientation)
+    points_of = trajectory_points(require_trajectory(result), sample_period, goal_orientation)
     msg = MultiDOFJointTrajectory()
     msg.header = Header(frame_id=frame_id, stamp=time_from_ns(stamp_ns))
     msg.joint_names = [joint_name]
     points = []
-    durations = seconds_to_ns(trajectory.times).tolist()
-    for index, (x, y, z, qx, qy, qz, qw) in enumerate(poses.tolist()):
+    durations = seconds_to_ns(points_of['times']).tolist()
+    rows = zip(points_of['positions'].tolist(), points_of['quaternions'].tolist(),
+               points_of['velocities'].tolist(), points_of['yaw_rates'].tolist(),
+               points_of['accelerations'].tolist(), durations)
+    for position, (qx, qy, qz, qw), velocity, yaw_rate, acceleration, duration in rows:
         point = MultiDOFJointTrajectoryPoint()
-        point.transforms = [Transform(translation=vector3((x, y, z)),
+        point.transforms = [Transform(translation=vector3(position),
                                       rotation=Quaternion(x=qx, y=qy, z=qz, w=qw))]
-        point.velocities = [Twist(linear=vector3(trajectory.velocities[index]))]
-        point.accelerations = [Twist(linear=vector3(trajectory.accelerations[index]))]
-        sec, nanosec = divmod(durations[index], 1_000_000_000)
+        twist = Twist(linear=vector3(velocity))
+        twist.angular.z = yaw_rate
+        point.velocities = [twist]
+        point.accelerations = [Twist(linear=vector3(acceleration))]
+        sec, nanosec = divmod(duration, 1_000_000_000)
         point.time_from_start = Duration(sec=sec, nanosec=nanosec)
         points.append(point)
     msg.points = points
