@@ -137,10 +137,17 @@ def test_per_interval_bounds_prove_the_limits():
         assert np.all(zeta + bends <= limits.jerk * (1 + 1e-9))
         # The maxima bound the curve's own values at points inside each interval.
         s = stations.s
-        inside = s[:-1] + rng.uniform(0.0, 1.0, len(s) - 1) * np.diff(s)
-        _, tangent, curvature, rate = smoothed.curve.derivatives3(inside)
-        assert np.all(np.hypot(tangent[:, 0], tangent[:, 1]) <= th + 1e-9)
-        assert np.all(np.linalg.norm(curvature, axis=1) <= stations.curvature_norm + 1e-9)
+        for _ in range(4):
+            inside = s[:-1] + rng.uniform(0.0, 1.0, len(s) - 1) * np.diff(s)
+            _, tangent, curvature, rate = smoothed.curve.derivatives3(inside)
+            assert np.all(np.hypot(tangent[:, 0], tangent[:, 1]) <= th + 1e-9)
+            assert np.all(np.abs(tangent[:, 2]) <= tz + 1e-9)
+            assert np.all(np.linalg.norm(curvature, axis=1)
+                          <= stations.curvature_norm * (1 + 1e-9) + 1e-9)
+            assert np.all(np.hypot(curvature[:, 0], curvature[:, 1])
+                          <= kh * (1 + 1e-9) + 1e-9)
+            assert np.all(np.linalg.norm(rate, axis=1)
+                          <= stations.curvature_rate * (1 + 1e-9) + 1e-9)
         checked += 1
     assert checked >= 40
 

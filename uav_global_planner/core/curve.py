@@ -121,6 +121,91 @@ class PathCurve:
                  + 3.0 * d1 * sigma1 ** 2 / sigma ** 5)
         return self._chain(x), tangent, normal, third
 
+    def derivative_bounds(self, s_start: np.ndarray,
+                          s_end: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+        """Upper bounds of ``|d2c/ds2|`` [1/m] and ``|d3c/ds3|`` [1/m^2] over each arc-length
+        interval ``[s_start[i], s_end[i]]``, proved on the cubic pieces it covers.
+
+        On a parameter range of a piece, ``|c'''|`` is constant, ``|c''|`` is largest at an end
+        (it is linear) and ``|c'|`` is bounded below by its value at the middle less
+        ``max|c''|`` times the half-width; with ``sigma = |c'|`` these bound every term of
+        ``d2c/ds2 = c''/sigma^2 - c' sigma'/sigma^3`` and of its derivative
+        (:meth:`derivatives3`). Ranges whose lower bound of ``sigma`` is poor are halved, up to
+        :data:`_BOUND_SPLITS` times.
+        """
+        start = np.asarray(s_start, dtype=np.float64)
+        end = np.asarray(s_end, dtype=np.float64)
+        piece_a, tau_a = self._locate(start)
+        piece_b, tau_b = self._locate(end)
+        h = self._pieces.h
+        rows = [np.arange(len(start))]
+        pieces = [piece_a]
+        t0 = [tau_a]
+        t1 = [np.where(piece_b == piece_a, tau_b, h[piece_a])]
+        # Intervals over a knot: the rest of the first piece above, then the pieces after it.
+        for row in np.flatnonzero(piece_b > piece_a).tolist():
+            for piece in range(int(piece_a[row]) + 1, int(piece_b[row]) + 1):
+                rows.append(np.array([row]))
+                pieces.append(np.array([piece]))
+                t0.append(np.zeros(1))
+                t1.append(np.array([tau_b[row] if piece == piece_b[row] else h[piece]]))
+        row = np.concatenate(rows)
+        curvature, rate = _range_bounds(self._pieces.coef, np.concatenate(pieces),
+                                        np.concatenate(t0), np.concatenate(t1), _BOUND_SPLITS)
+        out_k = np.zeros(len(start))
+        out_r = np.zeros(len(start))
+        np.maximum.at(out_k, row, curvature)
+        np.maximum.at(out_r, row, rate)
+        return out_k, out_r
+
+
+#: Halvings of a parameter range whose speed bound is poor (:meth:`PathCurve.derivative_bounds`).
+_BOUND_SPLITS = 24
+#: A range's speed bound is poor below this share of the speed at its middle.
+_GOOD_SPEED_BOUND = 0.9
+
+
+def _range_bounds(coef: np.ndarray, piece: np.ndarray, t0: np.ndarray, t1: np.ndarray,
+                  splits: int) -> Tuple[np.ndarray, np.ndarray]:
+    """Bounds of ``|d2c/ds2|`` and ``|d3c/ds3|`` on parameter ranges ``[t0, t1]`` of pieces."""
+    c0, c1, c2 = coef[0, piece], coef[1, piece], coef[2, piece]
+    third = np.linalg.norm(6.0 * c0, axis=1)
+    second = np.maximum(np.linalg.norm(6.0 * c0 * t0[:, None] + 2.0 * c1, axis=1),
+                        np.linalg.norm(6.0 * c0 * t1[:, None] + 2.0 * c1, axis=1))
+    middle = 0.5 * (t0 + t1)
+    half = 0.5 * np.abs(t1 - t0)
+    speed = np.linalg.norm((3.0 * c0 * middle[:, None] + 2.0 * c1) * middle[:, None] + c2,
+                           axis=1)
+    low = speed - second * half
+    poor = low <= _GOOD_SPEED_BOUND * speed
+    if splits > 0 and poor.any():
+        rows = np.flatnonzero(poor)
+        left = _range_bounds(coef, piece[rows], t0[rows], middle[rows], splits - 1)
+        right = _range_bounds(coef, piece[rows], middle[rows], t1[rows], splits - 1)
+        good_k, good_r = _bounds_of(second, third, np.where(poor, 1.0, low))
+        good_k[rows] = np.maximum(left[0], right[0])
+        good_r[rows] = np.maximum(left[1], right[1])
+        return good_k, good_r
+    # No better bound of the speed: the tiniest positive one (a cusp has no finite bound).
+    return _bounds_of(second, third, np.maximum(low, 1e-9 * np.maximum(speed, 1e-9)))
+
+
+def _bounds_of(second: np.ndarray, third: np.ndarray,
+               low: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+    """Bounds of ``|d2c/ds2|`` and ``|d3c/ds3|`` from the bounds of the parameter derivatives.
+
+    ``second`` bounds ``|c''|``, ``third`` is ``|c'''|`` and ``low`` bounds ``sigma = |c'|``
+    from below. With ``P`` the projection normal to the tangent ``T``,
+    ``d2c/ds2 = P c'' / sigma^2``, so its norm is at most ``|c''| / sigma^2``; its derivative in
+    the parameter is ``P' c'' / sigma^2 + P c''' / sigma^2 - 2 P c'' sigma' / sigma^3`` with
+    ``|P'| <= 2 |dT/dt| <= 2 |c''| / sigma`` and ``|sigma'| <= |c''|``, and ``d/ds`` is
+    ``1 / sigma`` times that: ``|d3c/ds3| <= |c'''| / sigma^3 + 4 |c''|^2 / sigma^4``.
+    """
+    with np.errstate(over='ignore'):
+        curvature = second / low ** 2
+        curvature_rate = third / low ** 3 + 4.0 * second ** 2 / low ** 4
+    return curvature, curvature_rate
+
 
 def arc_derivatives(d1: np.ndarray, d2: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
     """Tangent and curvature vector w.r.t. arc length from parameter derivatives."""

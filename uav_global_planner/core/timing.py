@@ -84,9 +84,6 @@ TANGENTIAL_RESERVE = 0.35
 _WINDOW_FACTORS = (1.0, 2.0)
 _MOVING_WINDOW_FACTORS = (1.0, 1.25, 1.5, 2.0)
 
-#: Points per interval where the curvature rate is taken (ends included).
-_RATE_POINTS = (0.0, 0.5, 1.0)
-
 #: Geometric levels of reach radii in :func:`_reach_min`, each this ratio of the next.
 _REACH_LEVELS = 24
 _REACH_RATIO = 0.8
@@ -94,6 +91,9 @@ _REACH_RATIO = 0.8
 #: Bisection steps of :func:`_self_reach_min`: the cap it finds is within 2^-24 of the
 #: largest that fits, and always one that fits.
 _REACH_BISECTIONS = 24
+
+#: The slowest speed cap [m/s]: only a cusp of the curve gets it.
+_CRAWL = 1e-3
 
 #: Rounds of plateaus at the turns of the profile (each may leave new, smaller turns).
 _PLATEAU_ROUNDS = 3
@@ -267,23 +267,16 @@ class _Stations:
             curvature = np.insert(curvature, both, curvature[both], axis=0)
             user = np.insert(user, both, user[both])
         ds = np.diff(s)
-        points = (s[:-1, None] + ds[:, None] * np.asarray(_RATE_POINTS)[None, :])
-        # Just inside the interval at its right end (a stop there has the next piece's).
-        points[:, -1] = s[1:] - 1e-9 * ds
-        _, _, normal, rate = smoothed.curve.derivatives3(points.ravel())
-        shape = points.shape
-        normal_norm = np.nan_to_num(np.linalg.norm(normal, axis=1)).reshape(shape)
-        rate_norm = np.nan_to_num(np.linalg.norm(rate, axis=1)).reshape(shape)
-        curvature_norm = np.maximum(np.hypot(curvature[:, 0], curvature[:, 1]),
-                                    normal_norm.max(axis=1))
-        rate_max = rate_norm.max(axis=1)
-        # Between the points where they were taken the maxima can grow by at most the
-        # derivative's bound times half the interval (every point of it is that close to one
-        # of its ends).
+        # |K'| is proved per interval on the cubic pieces; |K| and its components are the
+        # curve's verification-sample maxima widened by |K'| times half the interval (every
+        # point of it is that close to a sample), within the proved |K|; the tangent
+        # components likewise by |K|.
+        proved_k, rate_max = smoothed.curve.derivative_bounds(s[:-1], s[1:])
         half = 0.5 * ds
+        curvature_norm = np.minimum(np.hypot(curvature[:, 0], curvature[:, 1])
+                                    + rate_max * half, proved_k)
+        curvature = np.minimum(curvature + (rate_max * half)[:, None], proved_k[:, None])
         tangent = np.minimum(tangent + (curvature_norm * half)[:, None], 1.0)
-        curvature = curvature + (rate_max * half)[:, None]
-        curvature_norm = curvature_norm + rate_max * half
         return cls(s=s, stop=stop, tangent=tangent, curvature=curvature,
                    curvature_norm=curvature_norm, curvature_rate=rate_max,
                    user_cap=user)
@@ -316,10 +309,14 @@ class _Stations:
         spare = jerk - cap ** 3 * rate
         wanted = spare / (per_alpha + 3.0 * cap * knorm)
         alpha = np.clip(wanted, MIN_ALPHA_SHARE * alpha, alpha)
-        fits = alpha * (per_alpha + 3.0 * cap * knorm) + cap ** 3 * rate <= jerk
+        # (Within rounding: alpha was just fitted to this very sum.)
+        fits = alpha * (per_alpha + 3.0 * cap * knorm) + cap ** 3 * rate <= jerk * (1.0 + 1e-12)
         cap = np.where(fits, cap, np.minimum(cap, _cubic_cap(3.0 * alpha * knorm, rate,
                                                              jerk - alpha * per_alpha)))
         zeta = jerk - 3.0 * cap * alpha * knorm - cap ** 3 * rate
+        # A cusp, whose curvature no bound can hold, is crawled through rather than stopped
+        # at for good.
+        cap = np.maximum(cap, _CRAWL)
         return cap, alpha, np.maximum(zeta, alpha * per_alpha), 1.0 / per_alpha
 
 
@@ -442,14 +439,11 @@ def _profile(stations: _Stations, cap: np.ndarray, alpha: np.ndarray, tau: float
         # s0 starts at `launch` with speed `ahead`, so that the mean over the window is at the
         # start with the vehicle's speed and acceleration. Too fast to brake for the curve: the
         # largest speed that can (`launch` moves with it, so a few rounds).
-        # The history of s0 over [-tau, 0]: the acceleration the window needs, reached at the
-        # bound alpha over a time d, then constant speed `ahead`: its mean speed is v and
-        # its speed rises by a tau over the window, and `ahead` is as low as that allows.
+        # s0's history over [-tau, 0] (_history) makes the mean over the window start with
+        # the vehicle's speed and acceleration.
         brisk = float(alpha[0])
         for _ in range(_LAUNCH_ROUNDS):
-            d = min(tau, abs(a) * tau / brisk) if brisk > 0.0 else tau
-            ahead = v + 0.5 * a * d
-            launch = 0.5 * ahead * tau - a * d * d / 6.0
+            ahead, launch, past, fastest = _history(v, a, tau, brisk)
             if not (0.0 < launch < length and ahead > 0.0):
                 break
             trial = _passes(stations.s, stations.stop, cap, alpha, launch)
@@ -459,7 +453,6 @@ def _profile(stations: _Stations, cap: np.ndarray, alpha: np.ndarray, tau: float
             # The history's speeds enter the mean while the window covers them: they keep the
             # caps of the curve up to the launch point too.
             top = float(np.min(cap[:j]))
-            fastest = max(ahead, ahead - a * tau)
             if fastest > top * (1.0 + 1e-12):
                 v = max(v - (fastest - top), 0.0) * (1.0 - 1e-9)
                 continue
@@ -467,15 +460,10 @@ def _profile(stations: _Stations, cap: np.ndarray, alpha: np.ndarray, tau: float
                 s, stop, ds, reach2, back = trial
                 first, u0 = j, ahead ** 2
                 start_speed, start_accel = v, a
-                early = launch - v * tau
-                rise = a * tau / d if d > 0.0 else 0.0
-                history = [(-tau, early, ahead - a * tau, rise)]
-                if 0.0 < d < tau:
-                    history.append((-tau + d, early + (ahead - a * tau) * d + 0.5 * rise * d * d,
-                                    ahead, 0.0))
+                history = past
                 stop[:first] = False
                 break
-            v = max(math.sqrt(trial[4][j]) - 0.5 * a * d, 0.0) * (1.0 - 1e-9)
+            v = max(math.sqrt(trial[4][j]) - (ahead - v), 0.0) * (1.0 - 1e-9)
     u = np.asarray(_forward(back, reach2.tolist(), first, u0))
     # Where s0 turns from accelerating to braking (or back) at once, its acceleration jumps by
     # twice alpha, which only the longest window proves; a plateau of tau seconds at the turn
@@ -532,6 +520,45 @@ def _jerk_fits(profile: ArcProfile, s: np.ndarray, allowance: '_MinTable') -> bo
     hi = np.clip(np.searchsorted(s, arc[1:], side='left') - 1, 0, last)
     hi = np.maximum(hi, lo)
     return bool(np.all(jerk <= allowance.query(lo, hi) * (1.0 + 1e-9)))
+
+
+def _history(v: float, a: float, tau: float,
+             brisk: float) -> Tuple[float, float, List[Tuple[float, float, float, float]], float]:
+    """A history of ``s0`` over ``[-tau, 0]`` whose mean starts with speed ``v`` and
+    acceleration ``a``: ``s0`` changes its speed by ``a tau`` over the window, at the rate
+    ``brisk`` (or less) for the time ``d`` that takes and at constant speed otherwise, with the
+    change first when speeding up and last when slowing down (either keeps ``s0``'s speed at
+    ``0``, ``ahead``, as low as the mean allows).
+
+    Returns
+    -------
+    tuple
+        ``ahead`` (s0's speed at 0) [m/s], ``launch`` (s0 at 0, where the mean is 0) [m], the
+        pieces ``(start time, s0, speed, acceleration)`` and the fastest speed in them [m/s].
+    """
+    d = min(tau, abs(a) * tau / brisk) if brisk > 0.0 else tau
+    rise = a * tau / d if d > 0.0 else 0.0
+    steady = v - 0.5 * a * d
+    late = 0.5 * steady * tau + a * (d * d / 3.0 + 0.5 * (tau - d) * d)
+    if a >= 0.0 or not (late > 0.0 and steady + a * tau > 0.0):
+        # (Slowing down to almost nothing, the change comes first too: s0 must neither start
+        # behind the mean nor stand still.)
+        ahead = v + 0.5 * a * d
+        launch = 0.5 * ahead * tau - a * d * d / 6.0
+        early = launch - v * tau
+        pieces = [(-tau, early, ahead - a * tau, rise)]
+        if 0.0 < d < tau:
+            pieces.append((-tau + d, early + (ahead - a * tau) * d + 0.5 * rise * d * d,
+                           ahead, 0.0))
+        return ahead, launch, pieces, max(ahead, ahead - a * tau)
+    ahead = steady + a * tau
+    launch = late
+    early = launch - v * tau
+    if d < tau:
+        pieces = [(-tau, early, steady, 0.0), (-d, early + steady * (tau - d), steady, rise)]
+    else:
+        pieces = [(-tau, early, steady, rise)]
+    return ahead, launch, pieces, steady
 
 
 def _plateaus(s: np.ndarray, u: np.ndarray, first: int, tau: float) -> np.ndarray:

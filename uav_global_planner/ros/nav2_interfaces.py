@@ -614,7 +614,7 @@ class PlannerInterfaces:
                                first: PlanResult) -> Tuple[PlanResult, np.ndarray, str]:
         """GetPlan with tolerance: plan to the nearest free node near an occupied goal."""
         config = planner.config
-        node = nearest_free_node(planner.grid, planner.obstacles, config.safety_margin,
+        node = nearest_free_node(planner.grid, planner.obstacles, config.planning_margin,
                                  request.goal, request.tolerance)
         if node is None:
             note = (f'goal {request.goal.tolist()} is occupied and no free node lies within the '

@@ -88,7 +88,7 @@ class PlanInForce:
             with self._wake:
                 position = self._start if self._start_source != StartSource.PARAMETER else None
             result = in_force.result
-            verdict = certify_plan(result, live.obstacles, result.safety_margin,
+            verdict = certify_plan(result, live.obstacles, result.planning_margin,
                                    result.resolution, position, ahead_m=_CHECK_AHEAD_M)
             in_force.checked_version = live.version
             if verdict.clear:

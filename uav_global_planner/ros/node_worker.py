@@ -209,7 +209,7 @@ class PlanningWorker:
         planner = self._planner
         grid = planner.grid
         config = planner.config
-        gamma = config.safety_margin
+        gamma = config.planning_margin
         inside = bool(grid.contains(start))
         clamped = np.clip(start, grid.bounds_min, grid.bounds_max)
         outside_by = float(np.linalg.norm(start - clamped))

@@ -116,7 +116,8 @@ def build_mission(smoothed_path: Any, obstacles: ObstacleSet, config: PlannerCon
     if np.any(smoothed < lo - slack_bounds) or np.any(smoothed > hi + slack_bounds):
         raise InvalidInputError('smoothed_path leaves the bounds of the config: not a plan of '
                                 'this map')
-    gamma = float(config.safety_margin)
+    # The body keeps gamma: the vehicle radius is added, as the planner does.
+    gamma = float(config.safety_margin) + float(config.vehicle_radius)
     delta = float(config.resolution)
     radius = float(settings.acceptance_radius)
     # Rounded to a nanometre so that 0.2 + 0.1 reads 0.3 in every report.
