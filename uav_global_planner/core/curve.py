@@ -149,13 +149,13 @@ class PathCurve:
                 pieces.append(np.array([piece]))
                 t0.append(np.zeros(1))
                 t1.append(np.array([tau_b[row] if piece == piece_b[row] else h[piece]]))
-        row = np.concatenate(rows)
+        owner = np.concatenate(rows)
         curvature, rate = _range_bounds(self._pieces.coef, np.concatenate(pieces),
                                         np.concatenate(t0), np.concatenate(t1), _BOUND_SPLITS)
         out_k = np.zeros(len(start))
         out_r = np.zeros(len(start))
-        np.maximum.at(out_k, row, curvature)
-        np.maximum.at(out_r, row, rate)
+        np.maximum.at(out_k, owner, curvature)
+        np.maximum.at(out_r, owner, rate)
         return out_k, out_r
 
 

@@ -201,11 +201,11 @@ def time_parameterize(smoothed: SmoothedPath, limits: MotionLimits = MotionLimit
             break
     assert best is not None  # the last window always proves the jerk
     profile, start_speed, start_accel = best
-    reference_motion = _Motion(smoothed, profile)
-    yaw = yaw_profile(yaw_mode, profile.duration_s, limits.yaw_rate, reference_motion,
-                      goal, initial_yaw)
-    reference = TimedReference(curve=smoothed.curve, arc=profile, yaw=yaw)
     times = _times_of(profile, arc)
+    yaw = yaw_profile(yaw_mode, profile.duration_s, limits.yaw_rate,
+                      _SampledMotion(times, positions, profile.evaluate(times)[1][:, None]
+                                     * smoothed.tangents), goal, initial_yaw)
+    reference = TimedReference(curve=smoothed.curve, arc=profile, yaw=yaw)
     state = reference.evaluate(times)
     velocities, accelerations, jerks = state.velocity, state.acceleration, state.jerk
     stops = np.asarray(smoothed.stop_points, dtype=np.int64)
@@ -220,17 +220,21 @@ def time_parameterize(smoothed: SmoothedPath, limits: MotionLimits = MotionLimit
                         start_accel=start_accel)
 
 
-class _Motion:
-    """Positions and velocities of the reference without its heading (the yaw input)."""
+class _SampledMotion:
+    """Positions and velocities of the reference between its samples (the heading's input),
+    linear in time: the heading follows them at most at the yaw-rate limit anyway."""
 
-    def __init__(self, smoothed: SmoothedPath, profile: ArcProfile) -> None:
-        self._curve = smoothed.curve
-        self._profile = profile
+    def __init__(self, times: np.ndarray, positions: np.ndarray,
+                 velocities: np.ndarray) -> None:
+        self._times = times
+        self._positions = positions
+        self._velocities = velocities
 
     def __call__(self, times: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
-        s, speed, _, _ = self._profile.evaluate(times)
-        position, tangent, _, _ = self._curve.derivatives3(s)
-        return position, speed[:, None] * np.nan_to_num(tangent)
+        def column(values: np.ndarray) -> np.ndarray:
+            return np.stack([np.interp(times, self._times, values[:, k]) for k in range(3)],
+                            axis=1)
+        return column(self._positions), column(self._velocities)
 
 
 @dataclass
@@ -443,7 +447,7 @@ def _profile(stations: _Stations, cap: np.ndarray, alpha: np.ndarray, tau: float
         # the vehicle's speed and acceleration.
         brisk = float(alpha[0])
         for _ in range(_LAUNCH_ROUNDS):
-            ahead, launch, past, fastest = _history(v, a, tau, brisk)
+            ahead, launch, pieces, fastest = _history(v, a, tau, brisk)
             if not (0.0 < launch < length and ahead > 0.0):
                 break
             trial = _passes(stations.s, stations.stop, cap, alpha, launch)
@@ -460,7 +464,7 @@ def _profile(stations: _Stations, cap: np.ndarray, alpha: np.ndarray, tau: float
                 s, stop, ds, reach2, back = trial
                 first, u0 = j, ahead ** 2
                 start_speed, start_accel = v, a
-                history = past
+                history = pieces
                 stop[:first] = False
                 break
             v = max(math.sqrt(trial[4][j]) - (ahead - v), 0.0) * (1.0 - 1e-9)
