@@ -228,6 +228,13 @@ def test_a_new_goal_at_speed_continues_the_plan_in_force(flight) -> None:
     assert first['takeover'] == 'rest', first
     old = stack.reference(first['_stamp'])
     assert np.allclose(old.positions[0], HOVER) and np.allclose(old.velocities[0], 0.0)
+    # The heading starts at the hovering vehicle's (yaw 0, from its odometry) and turns to the
+    # direction of travel (45 degrees) at the yaw-rate limit, rather than jumping there.
+    yaws = 2.0 * np.arctan2(old.quaternions[:, 2], old.quaternions[:, 3])
+    assert abs(yaws[0]) < 1e-9
+    assert yaws[len(yaws) // 2] == pytest.approx(np.pi / 4, abs=1e-3)
+    steps = np.abs(np.angle(np.exp(1j * np.diff(yaws))))
+    assert steps.max() <= 0.785 * float(np.max(np.diff(old.times))) * (1 + 1e-6)
     stack.following = True
     fly_until_fast(planner, old, 3.0)
 

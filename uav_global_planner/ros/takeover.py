@@ -202,11 +202,14 @@ class Takeover:
         return self.position + dt * self.velocity, self.velocity, np.zeros(3)
 
     def plan_arguments(self, plan: Callable[..., Any]) -> Dict[str, Any]:
-        """Keyword arguments of ``plan`` (``Planner.plan``) for this start state; none from
-        rest, nor for a planner that cannot start moving."""
-        if not self.moving:
-            return {}
+        """Keyword arguments of ``plan`` (``Planner.plan``) for this start state; from rest only
+        the vehicle's heading (the heading profile turns from it instead of jumping), and
+        nothing a planner does not take."""
         accepted = inspect.signature(plan).parameters
+        if not self.moving:
+            if self.yaw is None or 'start_yaw' not in accepted:
+                return {}
+            return {'start_yaw': float(self.yaw)}
         values: Dict[str, Any] = {'start_velocity': self.velocity.copy(),
                                   'start_acceleration': self.acceleration.copy()}
         if self.yaw is not None:
@@ -376,7 +379,8 @@ class TakeoverPredictor:
             position = odometry.position + (stamp - odometry.received_ns) / _NS * velocity
             return Takeover(TakeoverKind.ODOMETRY, now, stamp, position, velocity.copy(),
                             np.zeros(3), odometry.yaw, latency, odometry=odometry)
-        return Takeover(TakeoverKind.REST, now, now, np.asarray(start, dtype=np.float64))
+        return Takeover(TakeoverKind.REST, now, now, np.asarray(start, dtype=np.float64),
+                        yaw=odometry.yaw)
 
     def settle(self, takeover: Takeover, trajectory: Optional[Trajectory],
                in_force_now: Optional[InForce], vehicle: Optional[np.ndarray],
