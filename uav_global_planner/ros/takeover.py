@@ -50,6 +50,7 @@ from typing import Any, Callable, Deque, Dict, Optional, Tuple
 
 import numpy as np
 
+from uav_global_planner.core.handover import HANDOVER_MIN_SPEED
 from uav_global_planner.core.result import ReferenceState, Trajectory
 from uav_global_planner.core.status import PlanStatus
 from uav_global_planner.ros import conversions as conv
@@ -57,11 +58,6 @@ from uav_global_planner.ros.conversions.poses import rotation_matrix
 from uav_global_planner.ros.node_state import InForce
 from uav_global_planner.ros.start_source import StartSource
 
-try:
-    from uav_global_planner.core.handover import HANDOVER_MIN_SPEED
-except ImportError:  # pragma: no cover - a core without planning from a moving state
-    #: Below this speed a state counts as at rest [m/s].
-    HANDOVER_MIN_SPEED = 0.05
 
 #: Measured latencies the estimate is taken from (the newest ones).
 LATENCY_WINDOW = 20
