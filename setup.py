@@ -28,6 +28,8 @@ setup(
     extras_require={'test': ['pytest', 'hypothesis', 'psutil', 'flake8', 'pymavlink', 'mavsdk'],
                     # Map frame <-> WGS84 for mission export (core/geodesy.py).
                     'geodesy': ['pymap3d'],
+                    # GeoTIFF terrain (core/dem.py), imported only when one is read.
+                    'terrain': ['rasterio'],
                     # Readers of map files (core/mapfiles.py), imported only when used.
                     'maps': ['pypcd4', 'plyfile', 'laspy', 'lazrs', 'octomap-python'],
                     # The interactive 3D view of uav-plan plot --html.

@@ -1,11 +1,14 @@
 """The plan-wide budget: TIMEOUT naming the stage, cancellation, progress, via-points."""
 
+import time
+
 import numpy as np
 import pytest
 
 from uav_global_planner.core.budget import PlanBudget, PlanStage
 from uav_global_planner.core.config import PlannerConfig
 from uav_global_planner.core.errors import PlanningCancelledError, PlanningTimeoutError
+from uav_global_planner.core.jit import compile_seconds, JIT_ENABLED, njit
 from uav_global_planner.core.obstacles import Box, ObstacleSet, PointSet, Sphere
 from uav_global_planner.core.planner import Planner
 from uav_global_planner.core.status import PlanStatus
@@ -24,6 +27,27 @@ def test_budget_raises_cancel_and_timeout_naming_the_stage():
     with pytest.raises(PlanningTimeoutError, match='timing ran out of the planning time'):
         spent.check()
     PlanBudget(0.0).check()  # no limit, no cancel: nothing happens
+
+
+@pytest.mark.skipif(not JIT_ENABLED, reason='numba compiles nothing without the JIT')
+def test_a_kernel_compiled_meanwhile_does_not_spend_the_budget():
+    """Compiling a kernel (once per install: kept on disk) is not time the plan spent."""
+    budget = PlanBudget(60.0)
+
+    @njit(cache=False)
+    def kernel(values):
+        total = 0.0
+        for value in values:
+            total += value * value
+        return total
+
+    before = compile_seconds()
+    kernel(np.arange(4.0))        # compiled here, on its first call
+    compiled = compile_seconds() - before
+    assert compiled > 0.0
+    elapsed = budget.elapsed_s
+    wall = time.perf_counter() - budget.started
+    assert 0.0 <= elapsed <= wall - compiled
 
 
 def test_grid_build_out_of_budget_is_a_timeout_of_that_stage():

@@ -25,11 +25,12 @@ def refused_inputs_markdown() -> str:
         '',
         test_refused_inputs_core.catalogue_markdown(),
         '',
-        '## planner_node (topics and parameter services)',
+        '## planner_node (topics, parameter services and map_file)',
         '',
         'WARN `input_rejected` and ERROR plan entries are published on `/diagnostics` with the '
         'Nav2 code shown, next to a log line; refused parameters come back in the '
-        '`SetParametersResult`.',
+        '`SetParametersResult`; a refused `map_file` is an ERROR map status, and goals are '
+        'refused with its reason.',
         '',
         test_refused_inputs_ros.catalogue_markdown(),
         '',

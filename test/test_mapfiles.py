@@ -21,6 +21,7 @@ import pytest
 from scipy.spatial import cKDTree
 import yaml
 
+from uav_global_planner.cli.main import main as uav_plan_main
 from uav_global_planner.core import scene as scene_module
 from uav_global_planner.core.errors import InvalidInputError, MissingDependencyError
 from uav_global_planner.core.mapfiles import (downsample_margin, load_map_files, load_map_points,
@@ -279,6 +280,54 @@ def test_non_finite_points_are_dropped_and_counted(tmp_path):
     assert np.all(np.isfinite(loaded.points))
 
 
+def test_every_load_reports_read_dropped_kept_and_extent(tmp_path):
+    points = wall_points()
+    holes = np.vstack([points, [[np.nan, 1.0, 1.0], [1.0, np.inf, 1.0]],
+                       [[40.0, 2.0, 1.0], [5.0, 2.0, -3.0]]])
+    file = tmp_path / 'wall.npy'
+    np.save(file, holes)
+    bounds = ([0.0, 0.0, 0.0], [10.0, 10.0, 4.0])
+    loaded = load_map_points(file, 0.5, bounds=bounds, reach=GAMMA, resolution=0.25)
+    (report,) = loaded.reports
+    assert report.file == str(file) and report.format == 'NumPy .npy'
+    assert report.points_read == len(holes)
+    assert report.dropped_non_finite == 2
+    # 40 m is far beyond the bounds; z = -3 m lies more than gamma below the floor.
+    assert report.outside_bounds == report.dropped_outside_bounds == 2
+    assert report.dropped_downsampled == len(points) - len(loaded.points)
+    assert report.points_kept == len(loaded.points)
+    assert report.points_read == (report.dropped_non_finite + report.dropped_outside_bounds
+                                  + report.dropped_downsampled + report.points_kept)
+    assert np.allclose(report.extent_min, loaded.points.min(axis=0))
+    assert np.allclose(report.extent_max, loaded.points.max(axis=0))
+    assert report.downsample_m == 0.5 and report.resolution_m is None
+    assert report.margin_m == loaded.margin_m == pytest.approx(downsample_margin(0.5))
+    assert json.loads(json.dumps(report.as_dict()))['points_kept'] == report.points_kept
+    assert ('dropped 2 non-finite, 2 outside the bounds, '
+            f'{report.dropped_downsampled} merged by downsampling') in report.summary()
+    # Without bounds nothing is outside; the prior map of the node counts but keeps them.
+    assert load_map_points(file).reports[0].outside_bounds == 0
+    prior = load_prior_map(str(file), bounds=bounds, reach=GAMMA)
+    assert prior.reports[0].outside_bounds == 2 and prior.reports[0].dropped_outside_bounds == 0
+    assert len(prior.points) == len(points) + 2
+    assert '(2 outside the bounds)' in prior.reports[0].summary()
+    # An OctoMap reports its resolution; several files report one each, in order.
+    octo = map_file('bt', tmp_path, points)
+    both = load_map_files([file, octo], bounds=bounds, reach=GAMMA, resolution=0.25)
+    assert [r.file for r in both.reports] == [str(file), str(octo)]
+    assert both.reports[1].resolution_m == pytest.approx(OCTOMAP_RESOLUTION)
+    assert sum(r.points_kept for r in both.reports) == len(both.points)
+
+
+def test_a_point_just_within_reach_of_the_bounds_is_kept(tmp_path):
+    """A point that may come within gamma (plus the map's margin) of the bounds can matter."""
+    file = tmp_path / 'edge.npy'
+    np.save(file, np.array([[5.0, 5.0, 2.0], [10.0 + GAMMA - 1e-9, 5.0, 2.0],
+                            [10.0 + GAMMA + 1e-6, 5.0, 2.0]]))
+    loaded = load_map_points(file, bounds=([0.0, 0.0, 0.0], [10.0, 10.0, 4.0]), reach=GAMMA)
+    assert len(loaded.points) == 2 and loaded.reports[0].dropped_outside_bounds == 1
+
+
 # --------------------------------------------------------------------------------------------
 # Voxel downsampling and its margin
 # --------------------------------------------------------------------------------------------
@@ -457,6 +506,47 @@ def test_cli_points_file_scene_and_a_corrupt_map(tmp_path):
     assert human.returncode == 2 and str(broken) in human.stderr
     run = uav_plan('plan', str(scene_file), '--map-downsample', '0.5')
     assert run.returncode == 2 and '--map-downsample needs at least one --map' in run.stderr
+
+
+def test_cli_text_and_json_say_what_each_map_file_read(tmp_path, capsys):
+    """Points read, dropped (why), kept and the extent, for the scene's points_file and for
+    every --map, in the JSON and in the text summary (in-process: the console script's main)."""
+    points = wall_points()
+    scene_map = map_file('ply', tmp_path, points)
+    extra = tmp_path / 'extra.npy'
+    np.save(extra, np.vstack([points + [0.0, 0.0, 0.0], [[np.nan, 0.0, 0.0]],
+                              [[500.0, 0.0, 0.0]]]))
+    scene_file = write_scene(tmp_path, [{'type': 'points_file', 'path': scene_map.name}])
+    code = uav_plan_main(['plan', str(scene_file), '--json', '--map', str(extra),
+                          '--algorithm', 'octile'])
+    result = json.loads(capsys.readouterr().out)
+    assert code == 0, result['message']
+    first, second = result['map_files']
+    assert first['file'] == str(scene_map) and first['format'] == 'PLY'
+    assert first['points_read'] == first['points_kept'] == len(points)
+    assert first['dropped_non_finite'] == first['dropped_outside_bounds'] == 0
+    assert first['extent_min'] == pytest.approx(points.min(axis=0).tolist(), abs=1e-5)
+    assert first['extent_max'] == pytest.approx(points.max(axis=0).tolist(), abs=1e-5)
+    assert second['file'] == str(extra) and second['points_read'] == len(points) + 2
+    assert second['dropped_non_finite'] == 1 and second['dropped_outside_bounds'] == 1
+    assert second['points_kept'] == len(points)
+    code = uav_plan_main(['plan', str(scene_file), '--map', str(extra), '--algorithm', 'octile'])
+    text = capsys.readouterr().out
+    assert code == 0, text
+    lines = [line for line in text.splitlines() if line.startswith('map file ')]
+    assert lines == [f'map file {scene_map}: {len(points)} points read, dropped none, '
+                     f'{len(points)} kept, extent x [5.000, 5.000] y [0.000, 7.000] '
+                     'z [0.000, 4.000] m',
+                     f'map file {extra}: {len(points) + 2} points read, dropped 1 non-finite, '
+                     f'1 outside the bounds, {len(points)} kept, extent x [5.000, 5.000] '
+                     'y [0.000, 7.000] z [0.000, 4.000] m']
+    # A refused map: exit code 2, the message on stderr, nothing planned.
+    empty = tmp_path / 'empty.npy'
+    np.save(empty, np.empty((0, 3)))
+    code = uav_plan_main(['plan', str(scene_file), '--map', str(empty)])
+    captured = capsys.readouterr()
+    assert code == 2 and captured.out == ''
+    assert f'uav-plan: error: --map: {empty}: no points' in captured.err
 
 
 def test_cli_max_voxels_option(tmp_path):

@@ -3,10 +3,10 @@ the planner node as a real process.
 """
 
 import signal
-import subprocess
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray
+from helpers.map_files import EMPTY, ply
 import numpy as np
 import pytest
 from visualization_msgs.msg import Marker, MarkerArray
@@ -95,7 +95,9 @@ def test_a_second_node_with_the_same_name_is_reported_by_both() -> None:
 
 def test_a_prior_map_file_is_a_map_and_is_kept_off(tmp_path) -> None:
     """A .npy wall across the workspace: goals are planned on it without any topic, around it
-    by gamma plus the downsampling margin; the file is fixed for the node's life."""
+    by gamma plus the downsampling margin, and the map status says what the file held; the file
+    is fixed for the node's life. A file that cannot be used is refused: the node runs without
+    it, says why in the log and the map status, and refuses goals."""
     wall = np.array([[x, 0.0, z] for x in np.arange(-10.0, 6.01, 0.1)
                      for z in np.arange(0.0, 15.01, 0.1)])
     path = tmp_path / 'wall.npy'
@@ -117,20 +119,52 @@ def test_a_prior_map_file_is_a_map_and_is_kept_off(tmp_path) -> None:
         points = conv.path_to_points(plan)
         assert min_clearance(points, ObstacleSet([PointSet(wall)])) >= GAMMA - TOL
         assert np.max(points[:, 0]) > 6.0, 'the path does not go round the wall'
+        # What the file held: read, merged by downsampling, kept, and the extent.
+        status = planner.wait_diag(0, 'map_status')
+        assert status['map_file_status'] == 'ok' and status['map_file'] == str(path), status
+        kept = int(status['map_file_points_kept'])
+        assert int(status['map_file_points_read']) == len(wall), status
+        assert int(status['map_file_dropped_downsampled']) == len(wall) - kept > 0, status
+        assert status['map_file_dropped_non_finite'] == '0', status
+        extent_min = np.array(status['map_file_extent_min'].strip('[]').split(', '), float)
+        extent_max = np.array(status['map_file_extent_max'].strip('[]').split(', '), float)
+        assert np.all(np.abs(extent_min - wall.min(axis=0)) <= margin + 1e-4), status
+        assert np.all(np.abs(extent_max - wall.max(axis=0)) <= margin + 1e-4), status
         (result,) = planner.params.set({'map_file': ''})
         # A read-only parameter (read at start-up): rclpy refuses it on a running node.
         assert not result.successful and 'read-only parameter: map_file' in result.reason
     finally:
         client.close()
         process.kill()
-    # A file that cannot be read: exit code 2 and the file named.
+    # A file that cannot be read, then one with no points: the node runs without it, says why,
+    # and refuses goals until it is restarted with a usable file.
     broken = tmp_path / 'broken.npy'
     broken.write_bytes(b'not a numpy file')
-    run = subprocess.run(planner_command(parameters={'map_file': str(broken)}),
-                         env=ros_environment(unique_domain_id()), capture_output=True, text=True,
-                         timeout=STARTUP_TIMEOUT_S)
-    assert run.returncode == 2, run.stderr
-    assert 'broken.npy' in run.stderr and 'invalid parameters' in run.stderr
+    empty = tmp_path / 'empty.ply'
+    ply(EMPTY)(empty)
+    for bad, reason in ((broken, 'not a valid NumPy .npy file, or truncated'),
+                        (empty, 'no points: the PLY file holds 0 points')):
+        client = RosClient(domain_id)
+        process = start_planner(domain_id, namespace=namespace, parameters={'map_file': str(bad)})
+        try:
+            line = process.wait_for_output('refused map_file: ', 1.0)
+            assert f'{bad}: {reason}' in line, line
+            planner = PlannerClient(client, namespace, client.record(DiagnosticArray,
+                                                                     '/diagnostics'), process)
+            status = planner.wait_diag(0, 'map_status')
+            assert status['_level'] == ERROR and status['status'] == 'no_map', status
+            assert status['map_file_status'] == 'refused', status
+            assert f'{bad}: {reason}' in status['map_file_refused'], status
+            mark = planner.diagnostics.mark()
+            planner.publish('goal_pose', conv.pose_stamped([0.0, 5.0, 2.0], 'map', 0))
+            refused = planner.wait_diag(mark, 'plan')
+            assert refused['status'] == 'no_map' and refused['_level'] == ERROR, refused
+            assert 'map_file refused: ' in refused['message'], refused
+            assert reason in refused['message'], refused
+            assert process.process.poll() is None, process.output
+        finally:
+            client.close()
+            process.kill()
 
 
 def test_a_frame_switch_during_a_long_plan_cancels_it_and_withdraws_the_old_plan() -> None:

@@ -10,7 +10,9 @@ import pytest
 from scipy.spatial import cKDTree
 
 from uav_global_planner.core.config import PlannerConfig
+from uav_global_planner.core.obstacles import ObstacleSet
 from uav_global_planner.core.scene import find_scene, load_scene
+from uav_global_planner.core.terrain import HeightField
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 # tools/ sits beside the package, not in it.
@@ -38,9 +40,16 @@ def test_shipped_scenes_load_with_free_endpoints(name, boxes, spheres, shape, ma
     generated = outdoor.SHIPPED[name]()
     assert generated.shape == shape
     assert np.array_equal(scene.obstacles.box_mins, generated.boxes[:, 0])
-    clearances = scene.obstacles.distance(np.stack([scene.start, scene.goal]))
+    # Free of the buildings for every margin; the towns' ground (ground: floor) is kept the
+    # scene's own gamma from.
+    buildings = ObstacleSet([item for item in scene.obstacles.items
+                             if not isinstance(item, HeightField)])
+    clearances = buildings.distance(np.stack([scene.start, scene.goal]))
     assert np.all(clearances > max(margins)), clearances
     assert scene.config.safety_margin == margins[0]
+    assert [shape.label for shape in scene.ground] == (
+        ['ground'] if name in ('town400', 'city1km') else [])
+    assert np.all(scene.obstacles.distance(np.stack([scene.start, scene.goal])) > margins[0])
 
 
 @pytest.mark.parametrize('make, street', [(outdoor.town400_boxes, 2.0),

@@ -12,10 +12,14 @@ those references honest); the others run here, by surface:
   ``ObstacleSet``, raises ``InvalidInputError``.
 * ``scene``: ``parse_scene`` of a scene document (as YAML loads it) raises ``InvalidInputError``
   whose message starts with the key path; ``file``: ``load_scene`` of a file.
+* ``map``: ``load_map_points`` of a map file written by its format's own library, with the
+  bounds, gamma and delta of :data:`SMALL`, raises ``InvalidInputError`` whose message starts
+  with the file name; accepted files report what was read, dropped and kept.
 * ``cli``: ``uav-plan plan FILE --json [options]`` exits with ``expected``
   (``2 invalid_input`` for invalid input, ``1 <status>`` for planning failures, ``0 ok``) and
   prints one JSON object whose ``message`` contains ``reason``. Every case runs through the
   console script's ``main()`` in this process; :data:`PROCESS_CASES` also as real processes.
+  Map files in the options, or beside the scene file, are written first (:class:`MapFile`).
 * ``expected`` ``ok``: accepted, not an error; ``reason`` says what happens.
 
 After every case nothing has changed: the planner keeps its settings and obstacles and answers
@@ -36,6 +40,7 @@ import subprocess
 from typing import Any, Callable, Dict, Tuple
 
 from helpers.documents import changed
+from helpers.map_files import BLOCK, bt, EMPTY, las, MapFile, NON_FINITE, npy, pcd, ply, UTM
 import numpy as np
 import pytest
 import test_scene
@@ -44,6 +49,7 @@ import yaml
 from uav_global_planner.cli.main import main as uav_plan_main
 from uav_global_planner.core.config import PlannerConfig
 from uav_global_planner.core.errors import InvalidInputError
+from uav_global_planner.core.mapfiles import load_map_points
 from uav_global_planner.core.obstacles import Box, ObstacleSet, PointSet, Sphere
 from uav_global_planner.core.planner import Planner
 from uav_global_planner.core.result import PlanResult
@@ -53,6 +59,7 @@ from uav_global_planner.core.status import PlanStatus
 HERE = Path(__file__).resolve().parent
 
 PLAN, CONFIG, OBSTACLES, SCENE, FILE, CLI = 'plan', 'config', 'obstacles', 'scene', 'file', 'cli'
+MAP = 'map'
 ERROR = 'InvalidInputError'
 _NAN, _INF = math.nan, math.inf
 
@@ -76,8 +83,8 @@ class Case:
     ----------
     case_id : str
     surface : str
-        :data:`PLAN`, :data:`CONFIG`, :data:`OBSTACLES`, :data:`SCENE`, :data:`FILE` or
-        :data:`CLI`.
+        :data:`PLAN`, :data:`CONFIG`, :data:`OBSTACLES`, :data:`SCENE`, :data:`FILE`,
+        :data:`MAP` or :data:`CLI`.
     given : str
         The input, in words.
     expected : str
@@ -90,8 +97,9 @@ class Case:
         The input: ``plan``: (start, goal, algorithm); ``config``: a PlannerConfig factory;
         ``obstacles``: a callable taking the planner; ``scene``: (key path, value) to set in
         the valid document (``KeyError`` deletes the key, an empty path replaces the whole
-        document); ``file``: the file's bytes (None: no file); ``cli``: (scene document, raw
-        bytes or None, extra arguments).
+        document); ``file``: the file's bytes (None: no file); ``map``: (:class:`MapFile`,
+        options of ``load_map_points``); ``cli``: (scene document, raw bytes or None, extra
+        arguments, optionally map files to write beside the scene).
     covered_by : str
         ``file::test`` that runs this case when it is not run here.
     """
@@ -136,6 +144,10 @@ TEST_CONFIG = 'test_config.py::test_invalid_settings_name_the_field'
 TEST_OBSTACLES = 'test_inflation.py::test_malformed_obstacles_are_refused'
 TEST_SCENE = 'test_scene.py::test_malformed_scene_names_the_key_path'
 TEST_FILES = 'test_scene.py::test_empty_file_and_non_yaml_file'
+TEST_DEM_SETTINGS = 'test_dem.py::test_ground_and_band_refusals'
+TEST_DEM_HOLES = 'test_dem.py::test_map_frame_grid_refusals'
+TEST_DEM_HEADERS = 'test_dem.py::test_asc_header_refusals'
+TEST_DEM_GEOTIFF = 'test_dem.py::test_geotiff_refusals_name_the_file'
 THIS = 'test_fuzz_core.py::'
 
 CATALOGUE = (
@@ -449,6 +461,41 @@ CATALOGUE = (
          'scene: must be a mapping, got int', ((), 42)),
     Case('scene_top_level_text', SCENE, "the document is 'hello'", ERROR,
          'scene: must be a mapping, got str', ((), 'hello')),
+    # ---------------------------------------------------------------- ground and terrain
+    Case('scene_ground_word', SCENE, "ground 'grass'", ERROR,
+         "ground: must be none, floor or a number in [-100000.0, 100000.0], got 'grass'",
+         (('ground',), 'grass')),
+    Case('scene_ground_above', SCENE, 'ground 100 m, above the bounds', ERROR,
+         'ground must be below bounds.max z', (('ground',), 100.0)),
+    Case('scene_min_agl_no_ground', SCENE, 'min_agl 2 m without a ground or terrain', ERROR,
+         'min_agl and max_agl are heights above the ground, and there is none',
+         (('min_agl',), 2.0)),
+    Case('scene_agl_band_inverted', CONFIG, 'max_agl 5 m not above min_agl 5 m', ERROR,
+         'max_agl must be above min_agl', covered_by=TEST_DEM_SETTINGS),
+    Case('scene_terrain_missing', SCENE, 'terrain {file: missing.tif}', ERROR,
+         'terrain.file: missing.tif: no such terrain file',
+         (('terrain',), {'file': 'missing.tif'})),
+    Case('scene_terrain_npy_bare', SCENE, 'terrain {file: heights.npy} without origin', ERROR,
+         'terrain: an .npy terrain needs origin: [x, y] and spacing: [dx, dy]',
+         (('terrain',), {'file': 'heights.npy'})),
+    Case('scene_terrain_spacing', SCENE, 'terrain .npy spacing [0, 1]', ERROR,
+         'terrain.spacing: must be > 0 m on both axes',
+         (('terrain',), {'file': 'h.npy', 'origin': [0, 0], 'spacing': [0, 1]})),
+    Case('scene_terrain_format', SCENE, 'terrain {file: dem.xyz}', ERROR,
+         'not a terrain file', (('terrain',), {'file': 'dem.xyz'})),
+    Case('dem_nodata_hole', FILE, 'a DEM (GeoTIFF, .asc, .npy) with nodata inside the bounds',
+         ERROR, 'hole', covered_by=TEST_DEM_HOLES),
+    Case('dem_not_covering', FILE, 'a DEM that does not cover the bounds', ERROR,
+         'the terrain does not cover the bounds', covered_by=TEST_DEM_HOLES),
+    Case('dem_header_non_finite', FILE, '.asc header cellsize nan, xllcorner inf', ERROR,
+         'must be finite', covered_by=TEST_DEM_HEADERS),
+    Case('dem_header_cellsize', FILE, '.asc header cellsize 0 or -1', ERROR,
+         'cellsize must be > 0', covered_by=TEST_DEM_HEADERS),
+    Case('dem_geotiff_no_crs', FILE, 'a GeoTIFF without a CRS', ERROR, 'no CRS',
+         covered_by=TEST_DEM_GEOTIFF),
+    Case('dem_geographic_no_origin', FILE, 'an EPSG:4326 GeoTIFF, the scene without '
+         'geodetic_origin', ERROR, 'give the scene a geodetic_origin',
+         covered_by=TEST_DEM_GEOTIFF),
     # ---------------------------------------------------------------- scene files
     Case('file_empty', FILE, 'an empty file', ERROR, 'the scene file is empty',
          covered_by=TEST_FILES),
@@ -468,6 +515,55 @@ CATALOGUE = (
          b'bounds: !!python/object/apply:os.system ["true"]\n'),
     Case('file_directory', FILE, 'a directory', ERROR, 'cannot read scene file (Is a directory)',
          'directory'),
+    # ---------------------------------------------------------------- map files
+    Case('map_ply_no_points', MAP, 'a PLY file with 0 vertices (plyfile)', ERROR,
+         'empty.ply: no points: the PLY file holds 0 points',
+         (MapFile('empty.ply', ply(EMPTY)), {})),
+    Case('map_pcd_no_points', MAP, 'a PCD file with 0 points (pypcd4)', ERROR,
+         'empty.pcd: no points: the PCD file holds 0 points',
+         (MapFile('empty.pcd', pcd(EMPTY)), {})),
+    Case('map_las_no_points', MAP, 'a LAS file with 0 points (laspy)', ERROR,
+         'empty.las: no points: the LAS file holds 0 points',
+         (MapFile('empty.las', las(EMPTY)), {})),
+    Case('map_bt_no_occupied_cells', MAP, 'an OctoMap .bt with no occupied cell', ERROR,
+         'empty.bt: no points: the OctoMap binary file holds 0 occupied cells',
+         (MapFile('empty.bt', bt(EMPTY)), {})),
+    Case('map_npy_no_points', MAP, 'a .npy array of shape (0, 3)', ERROR,
+         'empty.npy: no points: the NumPy .npy file holds 0 points, and an empty map would be '
+         'planned as open air', (MapFile('empty.npy', npy(EMPTY)), {})),
+    Case('map_ply_all_non_finite', MAP, 'a PLY file whose 50 vertices are NaN or inf', ERROR,
+         'nan.ply: no usable points: all 50 points of the PLY file have NaN or infinite '
+         'coordinates', (MapFile('nan.ply', ply(NON_FINITE)), {})),
+    Case('map_pcd_all_non_finite', MAP, 'a PCD file whose 50 points are NaN or inf', ERROR,
+         'nan.pcd: no usable points: all 50 points', (MapFile('nan.pcd', pcd(NON_FINITE)), {})),
+    Case('map_npy_all_non_finite', MAP, 'a .npy array of NaN and inf only', ERROR,
+         'nan.npy: no usable points: all 50 points', (MapFile('nan.npy', npy(NON_FINITE)), {})),
+    Case('map_las_all_outside', MAP, 'a LAS survey in UTM coordinates, bounds of a local frame',
+         ERROR, 'utm.las: all 50 usable points lie outside the planning bounds [0.0, 0.0, 0.0] '
+         '.. [6.0, 6.0, 4.0] (by more than 0.2 m): the points span x [465000, 465001]',
+         (MapFile('utm.las', las(UTM)), {})),
+    Case('map_npy_all_outside_millimetres', MAP, 'a .npy map written in millimetres', ERROR,
+         'Is the map in another frame or unit', (MapFile('mm.npy', npy(BLOCK * 1000.0)), {})),
+    Case('map_bt_resolution_too_fine', MAP, 'an OctoMap of 1 mm cells, delta 0.25 m', ERROR,
+         'fine.bt: the OctoMap resolution 0.001 m is finer than delta / 100 = 0.0025 m',
+         (MapFile('fine.bt', bt(BLOCK, 0.001)), {})),
+    Case('map_downsample_too_fine', MAP, 'downsampling cell 1 mm, delta 0.25 m', ERROR,
+         'block.npy: the downsampling cell 0.001 m is finer than delta / 100 = 0.0025 m',
+         (MapFile('block.npy', npy(BLOCK)), {'downsample': 0.001})),
+    Case('map_pcd_non_finite_viewpoint', MAP, 'a PCD header with VIEWPOINT nan 0 0 1 0 0 0',
+         ERROR, 'viewpoint.pcd: the PCD header holds a non-finite VIEWPOINT',
+         (MapFile('viewpoint.pcd', pcd(BLOCK, (math.nan, 0, 0, 1, 0, 0, 0))), {})),
+    Case('map_las_non_finite_scale', MAP, 'a LAS header with an x scale of NaN', ERROR,
+         'scale.las: the LAS header holds a non-finite scale (nan, 0.001, 0.001)',
+         (MapFile('scale.las', las(BLOCK, (math.nan, 0.001, 0.001))), {})),
+    Case('map_npy_some_non_finite', MAP, 'a .npy map with 2 NaN rows among 52', 'ok',
+         'accepted: the NaN rows are dropped and counted (52 points read, dropped 2 '
+         'non-finite, 50 kept)',
+         (MapFile('some.npy', npy(np.vstack([BLOCK, NON_FINITE[:2]]))), {})),
+    Case('map_npy_some_outside', MAP, 'a .npy map reaching 100 m beyond the bounds', 'ok',
+         'accepted: the far points are dropped and counted (51 points read, dropped 1 outside '
+         'the bounds, 50 kept)',
+         (MapFile('wide.npy', npy(np.vstack([BLOCK, [[100.0, 0.0, 0.0]]]))), {})),
     # ---------------------------------------------------------------- uav-plan plan FILE --json
     Case('cli_missing_file', CLI, 'a file that does not exist', '2 invalid_input',
          'no such scene file or shipped scene', (None, None, [])),
@@ -527,6 +623,32 @@ CATALOGUE = (
     Case('cli_start_equals_goal', CLI, 'goal equal to the start', '0 ok',
          'accepted: a single-point plan (path of 0.000 m over 1 nodes)',
          (_with(('goal',), [-1.5, -1.5, 0.5]), None, [])),
+    Case('cli_map_ply_no_points', CLI, '--map of a PLY file with 0 vertices', '2 invalid_input',
+         'empty.ply: no points: the PLY file holds 0 points',
+         (VALID_SCENE, None, ['--map', MapFile('empty.ply', ply(EMPTY))])),
+    Case('cli_map_npy_all_non_finite', CLI, '--map of a .npy array of NaN and inf only',
+         '2 invalid_input', 'nan.npy: no usable points: all 50 points',
+         (VALID_SCENE, None, ['--map', MapFile('nan.npy', npy(NON_FINITE))])),
+    Case('cli_map_las_all_outside', CLI, '--map of a LAS survey in UTM coordinates',
+         '2 invalid_input', 'utm.las: all 50 usable points lie outside the planning bounds '
+         '[-2.0, -2.0, 0.0] .. [2.0, 2.0, 3.0]',
+         (VALID_SCENE, None, ['--map', MapFile('utm.las', las(UTM))])),
+    Case('cli_map_bt_resolution_too_fine', CLI, '--map of an OctoMap of 1 mm cells',
+         '2 invalid_input', 'fine.bt: the OctoMap resolution 0.001 m is finer than delta / 100',
+         (VALID_SCENE, None, ['--map', MapFile('fine.bt', bt(BLOCK, 0.001))])),
+    Case('cli_map_downsample_too_fine', CLI, '--map-downsample 0.001 (delta 0.25 m)',
+         '2 invalid_input', 'the downsampling cell 0.001 m is finer than delta / 100',
+         (VALID_SCENE, None, ['--map', MapFile('block.npy', npy(BLOCK)),
+                              '--map-downsample', '0.001'])),
+    Case('cli_map_pcd_non_finite_viewpoint', CLI, '--map of a PCD file with a NaN VIEWPOINT',
+         '2 invalid_input', 'the PCD header holds a non-finite VIEWPOINT',
+         (VALID_SCENE, None,
+          ['--map', MapFile('viewpoint.pcd', pcd(BLOCK, (math.nan, 0, 0, 1, 0, 0, 0)))])),
+    Case('cli_points_file_no_points', CLI, 'a points_file obstacle of an empty .bt',
+         '2 invalid_input', 'empty.bt: no points: the OctoMap binary file holds 0 occupied cells',
+         (_with(('obstacles',), VALID_SCENE['obstacles'] + [{'type': 'points_file',
+                                                             'path': 'empty.bt'}]),
+          None, [], [MapFile('empty.bt', bt(EMPTY))])),
 )
 
 RUN_HERE = [case for case in CATALOGUE if not case.covered_by]
@@ -554,10 +676,10 @@ def test_catalogue_is_well_formed():
     assert len(ids) == len(set(ids))
     assert len(CATALOGUE) >= 40
     for case in CATALOGUE:
-        assert case.surface in (PLAN, CONFIG, OBSTACLES, SCENE, FILE, CLI), case.case_id
+        assert case.surface in (PLAN, CONFIG, OBSTACLES, SCENE, FILE, MAP, CLI), case.case_id
         assert case.reason and case.given, case.case_id
         assert (case.value is None) == bool(case.covered_by) or case.surface == FILE, case.case_id
-        if case.expected in ('ok', '0 ok') and case.surface in (PLAN, CLI):
+        if case.expected in ('ok', '0 ok') and case.surface in (PLAN, CLI, MAP):
             assert '(' in case.reason, case.case_id
         if case.surface == PLAN:
             assert case.expected in {status.value for status in PlanStatus}, case.case_id
@@ -690,19 +812,49 @@ def test_unreadable_scene_file_is_refused(case, tmp_path):
 
 
 # ----------------------------------------------------------------------------------------------
+# Map files
+# ----------------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize('case', _by_surface(MAP), ids=_ids(_by_surface(MAP)))
+def test_map_file_that_cannot_be_right_is_refused(case, tmp_path):
+    map_file, options = case.value
+    path = map_file.at(tmp_path)
+    checks = {'bounds': (SMALL.bounds_min, SMALL.bounds_max),
+              'reach': SMALL.safety_margin, 'resolution': SMALL.resolution, **options}
+    if case.expected == 'ok':
+        loaded = load_map_points(path, **checks)
+        (report,) = loaded.reports
+        assert _accepted_reason(case) in report.summary(), report.summary()
+        assert report.points_kept == len(loaded.points) > 0
+        assert report.points_read == (report.dropped_non_finite + report.dropped_outside_bounds
+                                      + report.dropped_downsampled + report.points_kept)
+    else:
+        with pytest.raises(InvalidInputError) as refused:
+            load_map_points(path, **checks)
+        message = str(refused.value)
+        assert message.startswith(str(tmp_path)), message
+        assert case.reason in message, message
+
+
+# ----------------------------------------------------------------------------------------------
 # uav-plan plan FILE --json: every case through the console script's main() in this process,
 # and a few as real processes (about a second of start-up each) to show they agree
 # ----------------------------------------------------------------------------------------------
 
 def _cli_arguments(case: Case, folder: Path) -> list:
-    """Write the case's scene file (always named scene.yaml) and return the arguments."""
-    document, raw, options = case.value
+    """Write the case's scene file (always named scene.yaml) and its map files, and return
+    the arguments (a :class:`MapFile` among them becomes the path it was written to)."""
+    document, raw, options, *beside = case.value
     scene = folder / case.case_id / 'scene.yaml'
     scene.parent.mkdir(parents=True)
     if raw is not None:
         scene.write_bytes(raw)
     elif document is not None:
         scene.write_text(yaml.safe_dump(document))
+    for map_file in (beside[0] if beside else []):
+        map_file.at(scene.parent)
+    options = [str(option.at(scene.parent)) if isinstance(option, MapFile) else option
+               for option in options]
     return ['plan', str(scene), '--json', *options]
 
 
@@ -728,7 +880,8 @@ def test_cli_plan_json_exit_code_status_and_reason(case, tmp_path, capsys):
     _check_cli(case, code, stdout, stderr)
 
 
-PROCESS_CASES = ('cli_binary_file', 'cli_option_unknown_algorithm', 'cli_no_path')
+PROCESS_CASES = ('cli_binary_file', 'cli_option_unknown_algorithm', 'cli_no_path',
+                 'cli_map_ply_no_points')
 
 
 def test_cli_cases_in_real_processes(tmp_path):
@@ -749,6 +902,7 @@ _TEST_OF_SURFACE = {PLAN: 'test_plan_refuses_with_a_typed_status',
                     OBSTACLES: 'test_malformed_obstacles_are_refused_and_change_nothing',
                     SCENE: 'test_malformed_scene_is_refused_with_its_key_path',
                     FILE: 'test_unreadable_scene_file_is_refused',
+                    MAP: 'test_map_file_that_cannot_be_right_is_refused',
                     CLI: 'test_cli_plan_json_exit_code_status_and_reason'}
 
 

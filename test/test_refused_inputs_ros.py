@@ -14,6 +14,14 @@ against one node process in the good state of :func:`good_state`:
   ``event: plan`` and no path; the last plan stays latched.
 * ``parameter refused``: the ``SetParametersResult`` has ``successful = false`` and says why;
   the old value stays and nothing is replanned.
+* ``map file refused``: the ``map_file`` read at start-up cannot be used (no usable points, all
+  outside the bounds, a resolution finer than delta / 100, a non-finite header, unreadable).
+  The node runs without it and logs ``refused map_file: <reason>``; its map status on
+  ``/diagnostics`` is an ERROR with ``map_file_status: refused`` and ``map_file_refused:
+  <reason>``, and every goal (topic or Nav2 action) is refused with the reason until the node is
+  restarted with a usable file. These rows run in-process
+  (:func:`test_map_file_refused_at_start_up`), one of them as a process
+  (``test_node_map_restart.py``), each file written by its format's own library.
 * ``accepted``: not an error; the row says what happens.
 
 After every case the node must still plan the next valid request, in the state it had before.
@@ -29,6 +37,7 @@ import time
 from typing import Any, Callable, Dict, Iterator, Mapping, Optional
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from helpers.map_files import BLOCK, bt, EMPTY, las, MapFile, NON_FINITE, npy, pcd, ply, UTM
 import numpy as np
 import pytest
 import rclpy
@@ -42,7 +51,9 @@ from ros_harness import (assert_clean_exit, LATCHED_QOS, marker, marker_array, m
                          odom_msg, PlannerClient, pose_msg, RosClient, RUN_NAMESPACE,
                          start_planner, unique_domain_id)
 from uav_global_planner.core.scene import find_scene, load_scene
+from uav_global_planner.core.status import PlanStatus
 from uav_global_planner.ros import conversions as conv
+from uav_global_planner.ros import nav2_interfaces
 from uav_global_planner.ros.planner_node import PlannerNode
 
 pytestmark = pytest.mark.ros
@@ -60,6 +71,7 @@ TOL = 1e-6
 REFUSED = 'refused'
 PLAN_FAILS = 'plan fails'
 PARAMETER_REFUSED = 'parameter refused'
+MAP_FILE_REFUSED = 'map file refused'
 ACCEPTED = 'accepted'
 
 WARN = int.from_bytes(DiagnosticStatus.WARN, 'little')
@@ -80,14 +92,16 @@ class Case:
     given : str
         The input, in words.
     outcome : str
-        :data:`REFUSED`, :data:`PLAN_FAILS`, :data:`PARAMETER_REFUSED` or :data:`ACCEPTED`.
+        :data:`REFUSED`, :data:`PLAN_FAILS`, :data:`PARAMETER_REFUSED`,
+        :data:`MAP_FILE_REFUSED` or :data:`ACCEPTED`.
     code : int, optional
         Nav2 ``ComputePathToPose`` code in the diagnostics (None for parameters).
     reason : str
         Substring of the reason the user sees (diagnostics ``reason`` or ``message``, the log
         line, or ``SetParametersResult.reason``); for accepted inputs, what happens.
     send : callable or mapping, optional
-        Message factory for topic rows, parameter values for parameter rows.
+        Message factory for topic rows, parameter values for parameter rows (start-up values
+        for ``map_file`` rows, a :class:`MapFile` written first).
     with_parameters : mapping
         Parameters set for the duration of the case (restored afterwards).
     covered_by : str
@@ -131,6 +145,7 @@ PLANNING = 'test_node_planning.py::test_malformed_input_is_reported_and_refused'
 LIVE_MAPS = 'test_node_live_maps.py::'
 PLANNING_PARAMS = 'test_node_planning.py::test_invalid_parameter_is_rejected_and_old_value_kept'
 THIS = 'test_refused_inputs_ros.py::'
+MAP_FILE = 'map_file (start-up)'
 
 CATALOGUE = (
     # ---------------------------------------------------------------- goal_pose
@@ -357,6 +372,48 @@ CATALOGUE = (
     Case('param_search_budget_tiny', 'parameter', 'max_expansions = 1 (valid, too small)',
          PLAN_FAILS, 207, 'search ran out of its expansion budget (max_expansions = 1)',
          send={'max_expansions': 1}),
+    # ---------------------------------------------------------------- map_file (start-up)
+    Case('map_file_ply_no_points', MAP_FILE, 'a PLY file with 0 vertices (plyfile)',
+         MAP_FILE_REFUSED, 200, 'empty.ply: no points: the PLY file holds 0 points',
+         send={'map_file': MapFile('empty.ply', ply(EMPTY))}),
+    Case('map_file_bt_no_occupied_cells', MAP_FILE, 'an OctoMap .bt with no occupied cell',
+         MAP_FILE_REFUSED, 200, 'empty.bt: no points: the OctoMap binary file holds 0 occupied '
+         'cells', send={'map_file': MapFile('empty.bt', bt(EMPTY))}),
+    Case('map_file_npy_all_non_finite', MAP_FILE, 'a .npy array of NaN and inf only',
+         MAP_FILE_REFUSED, 200, 'nan.npy: no usable points: all 50 points of the NumPy .npy '
+         'file have NaN or infinite coordinates',
+         send={'map_file': MapFile('nan.npy', npy(NON_FINITE))}),
+    Case('map_file_pcd_all_non_finite', MAP_FILE, 'a PCD file whose 50 points are NaN or inf',
+         MAP_FILE_REFUSED, 200, 'nan.pcd: no usable points: all 50 points',
+         send={'map_file': MapFile('nan.pcd', pcd(NON_FINITE))}),
+    Case('map_file_las_all_outside', MAP_FILE, 'a LAS survey in UTM coordinates',
+         MAP_FILE_REFUSED, 200, 'utm.las: all 50 usable points lie outside the planning bounds '
+         '[-10.0, -10.0, 0.0] .. [10.0, 10.0, 15.0]',
+         send={'map_file': MapFile('utm.las', las(UTM))}),
+    Case('map_file_bt_resolution_too_fine', MAP_FILE, 'an OctoMap of 1 mm cells, delta 0.5 m',
+         MAP_FILE_REFUSED, 200,
+         'fine.bt: the OctoMap resolution 0.001 m is finer than delta / 100 = 0.005 m',
+         send={'map_file': MapFile('fine.bt', bt(BLOCK, 0.001))}),
+    Case('map_file_downsample_too_fine', MAP_FILE, 'map_downsample = 0.001 m, delta 0.5 m',
+         MAP_FILE_REFUSED, 200,
+         'block.npy: the downsampling cell 0.001 m is finer than delta / 100 = 0.005 m',
+         send={'map_file': MapFile('block.npy', npy(BLOCK)), 'map_downsample': 0.001}),
+    Case('map_file_pcd_non_finite_viewpoint', MAP_FILE, 'a PCD header with a NaN VIEWPOINT',
+         MAP_FILE_REFUSED, 200, 'viewpoint.pcd: the PCD header holds a non-finite VIEWPOINT',
+         send={'map_file': MapFile('viewpoint.pcd', pcd(BLOCK, (_NAN, 0, 0, 1, 0, 0, 0)))}),
+    Case('map_file_las_non_finite_scale', MAP_FILE, 'a LAS header with an x scale of NaN',
+         MAP_FILE_REFUSED, 200, 'scale.las: the LAS header holds a non-finite scale',
+         send={'map_file': MapFile('scale.las', las(BLOCK, (_NAN, 0.001, 0.001)))}),
+    Case('map_file_unreadable', MAP_FILE, 'a .npy file that is not one', MAP_FILE_REFUSED, 200,
+         'broken.npy: not a valid NumPy .npy file, or truncated',
+         covered_by='test_node_map_restart.py::test_a_prior_map_file_is_a_map_and_is_kept_off'),
+    Case('map_file_some_non_finite_or_outside', MAP_FILE,
+         'a .npy map with 2 NaN rows and 1 point 1 km away', ACCEPTED, None,
+         'the NaN rows are dropped, the far point kept (the bounds may change), and the map '
+         'status says so: map_file_points_read 53, map_file_dropped_non_finite 2, '
+         'map_file_outside_bounds 1, map_file_points_kept 51',
+         send={'map_file': MapFile('some.npy', npy(np.vstack(
+             [BLOCK, NON_FINITE[:2], [[1000.0, 0.0, 0.0]]])))}),
 )
 
 CASES: Dict[str, Case] = {case.case_id: case for case in CATALOGUE}
@@ -656,6 +713,66 @@ def test_plan_that_a_new_obstacle_invalidates_is_withdrawn(planner: PlannerClien
     assert_good_plan(planner)
 
 
+# ------------------------------------------------------------------------------ map_file
+
+def _map_file_cases() -> list:
+    return sorted(case.case_id for case in CATALOGUE
+                  if case.channel == MAP_FILE and not case.covered_by)
+
+
+@pytest.mark.parametrize('case_id', _map_file_cases())
+def test_map_file_refused_at_start_up(case_id: str, tmp_path: Path) -> None:
+    """In-process (no DDS traffic): the node starts, and its map status, its goals and its Nav2
+    requests say why the map file was refused; an accepted file's figures are in the status."""
+    case = CASES[case_id]
+    overrides = [Parameter(name, value=str(value.at(tmp_path)) if isinstance(value, MapFile)
+                           else value) for name, value in case.send.items()]
+    context = rclpy.Context()
+    rclpy.init(context=context, domain_id=unique_domain_id(),
+               signal_handler_options=SignalHandlerOptions.NO)
+    node = None
+    try:
+        node = PlannerNode(context=context, parameter_overrides=overrides)
+        published = []
+        node._publish_diagnostics = (
+            lambda stamp_ns, level, text, values: published.append((level, text, dict(values))))
+        node._publish_map_status()
+        level, text, values = published[-1]
+        assert values['event'] == 'map_status', values
+        if case.outcome == ACCEPTED:
+            assert node.map_refusal() == '' and values['map_file_status'] == 'ok', values
+            for figure in case.reason.partition('says so: ')[2].split(', '):
+                key, _, number = figure.partition(' ')
+                assert str(values[key]) == number, (key, values)
+            assert 'map_file: 1 accepted' in values['map_sources'], values
+            return
+        assert case.outcome == MAP_FILE_REFUSED
+        reason = node.map_refusal()
+        assert reason.startswith('map_file refused: ') and case.reason in reason, reason
+        assert level == DiagnosticStatus.ERROR and text == reason, (level, text)
+        assert values['status'] == 'no_map' and values['map_file_status'] == 'refused', values
+        assert case.reason in values['map_file_refused'], values
+        assert case.reason in values['map_refused'], values
+        assert 'map_file: 0 accepted, 1 refused' in values['map_sources'], values
+        # A goal is refused with the reason, as if no map had arrived: code 200.
+        node._on_goal(pose_msg(GOAL))
+        level, text, values = published[-1]
+        assert values['event'] == 'plan' and values['status'] == 'no_map', values
+        assert values['status_code'] == case.code and case.reason in values['message'], values
+        assert level == DiagnosticStatus.ERROR
+        with node._wake:
+            assert node._goal is None
+        # So is a Nav2 request, before it reaches the planner.
+        request = nav2_interfaces._Request('ComputePathToPose', GOAL, GOAL_ORIENTATION, 'map',
+                                           'adaptive')
+        outcome = node._nav2._plan(request, None, None)
+        assert outcome.status is PlanStatus.INVALID_INPUT and outcome.message == reason
+    finally:
+        if node is not None:
+            node.close()
+        rclpy.try_shutdown(context=context)
+
+
 # ------------------------------------------------------------------------------ the table itself
 
 def test_catalogue_references_exist() -> None:
@@ -748,6 +865,9 @@ def catalogue_markdown() -> str:
             seen = f'accepted: {case.reason}'
         elif case.outcome == PARAMETER_REFUSED:
             seen = f'SetParametersResult refused: "{case.reason}"'
+        elif case.outcome == MAP_FILE_REFUSED:
+            seen = (f'ERROR map_status, map_file_refused: "{case.reason}"; goals refused, '
+                    f'code {case.code}')
         else:
             kind = 'WARN input_rejected' if case.outcome == REFUSED else 'ERROR plan'
             seen = f'{kind}, code {case.code}: "{case.reason}"'

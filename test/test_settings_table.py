@@ -110,7 +110,7 @@ def _consumers(entry: Setting) -> List[str]:
         names.append('node')
     if entry.scene_key:
         names.append('scene')
-    if entry.flag and entry.kind in (Kind.FLOAT, Kind.INT, Kind.CHOICE):
+    if entry.flag and entry.kind in (Kind.FLOAT, Kind.INT, Kind.CHOICE, Kind.WORD_OR_NUMBER):
         names.append('cli')
     return names
 
@@ -118,7 +118,8 @@ def _consumers(entry: Setting) -> List[str]:
 def _as_typed(entry: Setting, value: Any) -> Optional[str]:
     """``value`` as a command-line word, or None when no word parses to it: a word that is
     not a number is argparse's own "invalid float value" (``test_cli.py``), not a range."""
-    if entry.kind is Kind.CHOICE:
+    if entry.kind is Kind.CHOICE or (entry.kind is Kind.WORD_OR_NUMBER
+                                     and isinstance(value, str)):
         return value if isinstance(value, str) else None
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         return None
@@ -190,6 +191,14 @@ def _boundaries(entry: Setting) -> Tuple[List[Any], List[Tuple[Any, str]]]:
             ([1.0, 2.0], ' must be three numbers [x, y, z], got [1.0, 2.0]'),
             ([math.nan, 0.0, 0.0], '[0] must be finite, got nan'),
             ([0.0, 'a', 0.0], "[1] must be a number, got 'a'")]
+    if entry.kind is Kind.WORD_OR_NUMBER:
+        low, high = float(entry.low), float(entry.high)
+        words = f'{", ".join(entry.choices)} or a number in [{low}, {high}]'
+        above = high + max(abs(high), 1.0) * 1e-9
+        return [*entry.choices, low, high, str(high)], [
+            (entry.choices[0].upper(), f' must be {words}, got {entry.choices[0].upper()!r}'),
+            (above, f' must be {words}, got {above}'),
+            (math.nan, f' must be {words}, got nan'), (True, f' must be {words}, got True')]
     if entry.kind is Kind.TEXT:
         refused = [(7, f' must be {entry.accepted}, got 7')]
         if entry.non_empty:
@@ -202,6 +211,10 @@ def _cross_field_safe(entry: Setting, value: Any) -> bool:
     """False for values that break a cross-field rule on the test's bounds."""
     if entry.name in ('bounds.min', 'bounds.max'):
         return False  # the default corners are not below/above the tiny bounds' other corner
+    if entry.name in ('min_agl', 'max_agl') and value > 0.0:
+        return False  # a height band above a ground the scene does not have
+    if entry.name == 'ground' and value not in entry.choices:
+        return float(value) < _TINY_MAX[2]  # a flat ground above the bounds is refused
     # The geofence band: floor below the default ceiling (120 m), ceiling above the floor (0).
     return not ((entry.name == 'geofence_floor' and value >= 120.0)
                 or (entry.name == 'geofence_ceiling' and value <= 0.0))
@@ -330,7 +343,7 @@ def test_the_existing_flags_keep_their_names():
     assert {'--resolution', '--safety-margin', '--adaptive-threshold', '--smoothing',
             '--no-shortcut', '--max-planning-time', '--max-voxels', '--search-weight',
             '--map-downsample', '--max-jerk', '--max-tilt', '--max-thrust-to-weight',
-            '--max-yaw-rate', '--yaw-mode', '--vehicle-radius', '--tracking-margin'} == flags
+            '--max-yaw-rate', '--yaw-mode', '--vehicle-radius', '--tracking-margin'} <= flags
     args = _parser().parse_args(['plan', 'scene.yaml', '--no-shortcut', '--max-voxels', '7',
                                  '--map-downsample', '0.5'])
     assert (args.shortcut, args.max_voxels, args.map_downsample) == (False, 7, 0.5)
@@ -358,7 +371,7 @@ def test_the_node_validates_every_parameter_it_declares():
         with pytest.raises(KeyError, match=re.escape(repr(name))):
             parameters.settings_from_parameters(values)
     assert set(parameters.STARTUP_ONLY) == {'map_file', 'map_downsample',
-                                            'cloud_qos_reliability'}
+                                            'cloud_qos_reliability', 'terrain_file'}
 
 
 # ------------------------------------------------------------------------------ README

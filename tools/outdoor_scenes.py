@@ -53,6 +53,9 @@ class OutdoorScene:
     max_voxels : int or None
         Node cap the scene sets (``max_voxels`` in its file) because its grid is larger than
         planners accept by default; None otherwise.
+    ground : str
+        The ``ground`` setting of its file: ``'floor'`` for the outdoor towns (the ground is
+        real: the scene loader adds it as a height field), ``'none'`` to leave the key out.
     """
 
     name: str
@@ -67,6 +70,7 @@ class OutdoorScene:
     boxes: np.ndarray
     spheres: np.ndarray
     max_voxels: Optional[int] = None
+    ground: str = 'none'
 
     @property
     def shape(self) -> Tuple[int, int, int]:
@@ -170,7 +174,8 @@ def town400() -> OutdoorScene:
                      'tools/make_scenes.py.'),
         bounds_min=(-100.0, -100.0, 0.0), bounds_max=(100.0, 100.0, 40.0), resolution=0.5,
         safety_margin=0.5, adaptive_threshold=1.5, start=(-98.0, -98.0, 2.0),
-        goal=(98.0, 98.0, 2.0), boxes=town400_boxes(), spheres=np.empty((0, 4)))
+        goal=(98.0, 98.0, 2.0), boxes=town400_boxes(), spheres=np.empty((0, 4)),
+        ground='floor')
 
 
 def city1km() -> OutdoorScene:
@@ -184,7 +189,7 @@ def city1km() -> OutdoorScene:
         bounds_min=(-500.0, -500.0, 0.0), bounds_max=(500.0, 500.0, 100.0), resolution=1.0,
         safety_margin=1.0, adaptive_threshold=1.5, start=(-460.0, -460.0, 2.0),
         goal=(460.0, 460.0, 2.0), boxes=city1km_boxes(), spheres=np.empty((0, 4)),
-        max_voxels=110_000_000)
+        max_voxels=110_000_000, ground='floor')
 
 
 def wall_gap() -> OutdoorScene:
@@ -338,6 +343,8 @@ def scene_yaml(scene: OutdoorScene, with_max_voxels: bool) -> str:
              f'adaptive_threshold: {_number(scene.adaptive_threshold)}']
     if with_max_voxels and scene.max_voxels is not None:
         lines.append(f'max_voxels: {int(scene.max_voxels)}')
+    if scene.ground != 'none':
+        lines.append(f'ground: {scene.ground}')
     lines += [f'start: {_triple(scene.start)}', f'goal: {_triple(scene.goal)}', 'obstacles:']
     for x, y, z, r in scene.spheres:
         lines.append(f'- {{type: sphere, center: {_triple((x, y, z))}, radius: {_number(r)}}}')

@@ -39,7 +39,7 @@ def compare_algorithms(scene: Scene, algorithms: Sequence[str] = ALGORITHMS,
 
     The grid is built once and shared, so the times are search times only.
     """
-    planner = Planner(scene.config, scene.obstacles)
+    planner = Planner(scene.config, scene.obstacles, unknown=scene.unknown)
     results: Dict[str, PlanResult] = {}
     times: Dict[str, float] = {}
     for algorithm in algorithms:

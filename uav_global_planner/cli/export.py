@@ -179,8 +179,8 @@ def _routes(args: argparse.Namespace, scene: Scene
     for margin in route_margins(args, scene):
         config = validate_config(replace(scene.config, safety_margin=margin))
         via = getattr(scene, 'via', np.empty((0, 3)))
-        result = Planner(config, scene.obstacles).plan(scene.start, scene.goal, args.algorithm,
-                                                       via=via)
+        planner = Planner(config, scene.obstacles, unknown=getattr(scene, 'unknown', None))
+        result = planner.plan(scene.start, scene.goal, args.algorithm, via=via)
         if not result.ok:
             yield None, f'route with safety margin {margin:g} m: {result.message}'
             continue

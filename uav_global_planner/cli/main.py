@@ -9,25 +9,29 @@ from dataclasses import replace
 import json
 import math
 import sys
-from typing import Any, Callable, List, Optional
+from typing import Any, Callable, List, Optional, Tuple
 
 import numpy as np
 
 from uav_global_planner.cli.compare import compare_algorithms
 from uav_global_planner.cli.export import add_export_command, run_export
-from uav_global_planner.cli.report import (finite_or_none, format_summary, format_table,
+from uav_global_planner.cli.report import (admission_lines, admission_to_dict, finite_or_none,
+                                           format_summary, format_table, map_report_lines,
                                            result_to_dict)
 from uav_global_planner.core.airspace import Airspace, load_geofence
-from uav_global_planner.core.budget import PlanStage
+from uav_global_planner.core.budget import PlanBudget, PlanStage
 from uav_global_planner.core.config import ALGORITHMS, validate_config
-from uav_global_planner.core.errors import InvalidInputError
+from uav_global_planner.core.errors import InvalidInputError, PlanningError
 from uav_global_planner.core.mapfiles import load_map_files
 from uav_global_planner.core.motion_limits import MotionLimits
 from uav_global_planner.core.obstacles import ObstacleSet
 from uav_global_planner.core.planner import Planner
-from uav_global_planner.core.scene import find_scene, load_scene, Scene
+from uav_global_planner.core.result import PlanResult
+from uav_global_planner.core.scene import find_scene, load_scene, Scene, with_ground
 from uav_global_planner.core.settings import format_value, Kind, planner_settings, Setting
+from uav_global_planner.core.start_admission import Admission, admit, explain, GOAL, START
 from uav_global_planner.core.status import PlanStatus
+from uav_global_planner.core.unknown_space import combine, unknown_from_map_files
 
 EXIT_OK = 0
 EXIT_PLAN_FAILED = 1
@@ -83,6 +87,10 @@ def _add_scene_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--via', action='append', default=[], metavar='X,Y,Z', type=_triple,
                         help='a via-point [m] passed through exactly, in order; repeatable '
                         "(replaces the scene's via list)")
+    parser.add_argument('--terrain', metavar='FILE',
+                        help='the ground as a digital elevation model: a GeoTIFF (placed with '
+                        "the scene's geodetic_origin) or an ESRI ASCII grid .asc in the map "
+                        "frame; replaces the scene's terrain")
     parser.add_argument('--geofence', metavar='FILE',
                         help='inclusion fences and no-fly zones from a YAML file or a '
                         "QGroundControl .plan (placed with the scene's geodetic_origin; .plan "
@@ -96,7 +104,8 @@ _METAVARS = {'m': 'M', 's': 'S'}
 def _argument_type(entry: Setting) -> Callable[[str], Any]:
     """An argparse ``type`` converting a word and checking it with the table, so a flag
     refuses exactly what the node, scene files and validate_config refuse."""
-    parse: Callable[[str], Any] = {Kind.INT: int, Kind.CHOICE: str}.get(entry.kind, float)
+    parse: Callable[[str], Any] = {Kind.INT: int, Kind.CHOICE: str,
+                                   Kind.WORD_OR_NUMBER: str}.get(entry.kind, float)
 
     def convert(text: str) -> Any:
         value = parse(text)  # ValueError: argparse says "invalid float value: 'abc'"
@@ -128,6 +137,8 @@ def _add_setting_flags(parser: argparse.ArgumentParser) -> None:
                                 f'{format_value(not entry.default)}.')
             continue
         metavar = ('{' + ','.join(entry.choices) + '}' if entry.kind is Kind.CHOICE
+                   else '{' + ','.join(entry.choices) + ',Z}'
+                   if entry.kind is Kind.WORD_OR_NUMBER
                    else 'N' if entry.kind is Kind.INT else _METAVARS.get(entry.unit, 'X'))
         parser.add_argument(entry.flag, dest=dest, type=_argument_type(entry),
                             metavar=metavar, help=entry.help_text())
@@ -174,7 +185,8 @@ def _scene_from_args(args: argparse.Namespace) -> Scene:
             changes[entry.field] = value
     # The options replace the scene's values before it is validated, so --max-voxels can admit
     # a grid the scene's own cap refuses.
-    scene = load_scene(find_scene(args.scene), overrides=changes)
+    scene = load_scene(find_scene(args.scene), overrides=changes,
+                       terrain_file=_terrain_file(args.terrain))
     if args.via:
         scene = replace(scene, via=np.asarray(args.via, dtype=np.float64).reshape(-1, 3))
     if args.geofence:
@@ -185,7 +197,12 @@ def _scene_from_args(args: argparse.Namespace) -> Scene:
         return scene
     try:
         # 0 means no downsampling, as for the node's map_downsample.
-        maps = load_map_files(args.map, args.map_downsample or None)
+        # Checked against the bounds and delta; gamma as asked, without the scene's map margin.
+        config = scene.config
+        maps = load_map_files(args.map, args.map_downsample or None,
+                              bounds=(config.bounds_min, config.bounds_max),
+                              reach=config.safety_margin - scene.map_margin_m,
+                              resolution=config.resolution)
     except InvalidInputError as error:
         raise type(error)(f'--map: {error}') from None
     # gamma as asked, plus the largest margin of any map (see core.mapfiles).
@@ -193,7 +210,18 @@ def _scene_from_args(args: argparse.Namespace) -> Scene:
     gamma = scene.config.safety_margin - scene.map_margin_m + margin
     return replace(scene, config=validate_config(replace(scene.config, safety_margin=gamma)),
                    obstacles=ObstacleSet([*scene.obstacles.items, maps.obstacle()]),
-                   map_margin_m=margin)
+                   map_margin_m=margin, map_reports=scene.map_reports + maps.reports,
+                   unknown=combine([scene.unknown, unknown_from_map_files(
+                       args.map, config.bounds_min, config.bounds_max)]))
+
+
+def _terrain_file(text: Optional[str]) -> Optional[str]:
+    """``--terrain FILE`` as given (None without it); an ``.npy`` file is refused: its
+    lattice needs an origin and a spacing, which only the scene's ``terrain`` key gives."""
+    if text and text.lower().endswith('.npy'):
+        raise InvalidInputError(f'--terrain: {text}: an .npy terrain needs its origin and '
+                                "spacing: give it in the scene's terrain key")
+    return text or None
 
 
 def _with_geofence(scene: Scene, path: str) -> Scene:
@@ -213,11 +241,31 @@ def _without_geofence(scene: Scene) -> Scene:
     return replace(scene, obstacles=ObstacleSet(others), airspace=Airspace())
 
 
-def _warm_planner(scene: Scene) -> Planner:
-    """A planner with its grid built and its kernels loaded, so the reported time is search."""
-    planner = Planner(scene.config, scene.obstacles)
-    planner.warm_up()
-    return planner
+def _warm_planner(scene: Scene, budget: PlanBudget) -> Tuple[Planner, bool]:
+    """A planner with its grid built within the plan's ``budget`` and its kernels loaded, so
+    the reported time is search; and whether the grid is built (False: the budget ran out
+    during the build, which the plan with that budget then reports, naming the stage)."""
+    planner = Planner(scene.config, scene.obstacles, unknown=scene.unknown)
+    try:
+        planner.warm_up(budget)
+    except PlanningError:
+        return planner, False
+    return planner, True
+
+
+def _plan_admitted(planner: Planner, scene: Scene, algorithm: str, ready: bool = True,
+                   **options: Any) -> Tuple[PlanResult, Tuple[Admission, Admission]]:
+    """Plan the scene from its start to its goal, each first admitted by the scene's
+    start_tolerance (:mod:`uav_global_planner.core.start_admission`): a start or goal on the
+    ground is lifted to the lowest free height, and a refusal says how far and the fix.
+    Without a grid (``ready`` False: the budget ran out building it) the points are taken as
+    asked and the plan reports the timeout."""
+    admissions = ((admit(planner, scene.start, START), admit(planner, scene.goal, GOAL))
+                  if ready else (Admission(START, scene.start, scene.start),
+                                 Admission(GOAL, scene.goal, scene.goal)))
+    result = planner.plan(admissions[0].point, admissions[1].point, algorithm, via=scene.via,
+                          **options)
+    return explain(result, admissions), admissions
 
 
 def _progress_to_stderr(stage: PlanStage, elapsed_s: float, budget_s: float) -> None:
@@ -233,12 +281,19 @@ def _run_plan(args: argparse.Namespace, scene: Scene) -> int:
                                  / scene.config.resolution) + 1))
     if nodes >= _ANNOUNCE_GRID_NODES:
         print(f'planning: grid build of {nodes / 1e6:.0f} M nodes', file=sys.stderr, flush=True)
-    result = _warm_planner(scene).plan(scene.start, scene.goal, args.algorithm, via=scene.via,
-                                       progress=_progress_to_stderr)
+    # One budget from the grid build on: max_planning_time bounds the whole plan.
+    budget = PlanBudget(scene.config.max_planning_time, progress=_progress_to_stderr)
+    planner, ready = _warm_planner(scene, budget)
+    result, admissions = _plan_admitted(planner, scene, args.algorithm, ready, budget=budget)
     if args.json:
-        print(json.dumps(result_to_dict(result)))
+        output = result_to_dict(result)
+        output.update(admission_to_dict(admissions))
+        output['map_files'] = [report.as_dict() for report in scene.map_reports]
+        print(json.dumps(output))
     else:
         print(f'scene: {scene.name}')
+        for line in map_report_lines(scene.map_reports) + admission_lines(admissions):
+            print(line)
         print(format_summary(result))
     return EXIT_OK if result.ok else EXIT_PLAN_FAILED
 
@@ -269,12 +324,15 @@ def _run_compare(args: argparse.Namespace, scene: Scene) -> int:
                       'flight_time_s': finite_or_none(row.result.duration_s),
                       'energy_wh': finite_or_none(row.result.energy.energy_wh
                                                   if row.result.energy else math.nan)}
-                     for row in rows]}))
+                     for row in rows],
+            'map_files': [report.as_dict() for report in scene.map_reports]}))
     else:
         grid = f'{scene.config.resolution} m grid'
         print(f'{scene.name}: {len(scene.obstacles)} obstacles, {grid}, gamma '
               f'{scene.config.safety_margin} m, eta {scene.config.adaptive_threshold} m, '
               f'median of {args.repeats} runs')
+        for line in map_report_lines(scene.map_reports):
+            print(line)
         print(format_table(
             ['algorithm', 'time [ms]', 'length [m]', 'expanded', 'vs optimum',
              'smoothed [m]', 'clearance [m]', 'flight [s]', 'energy [Wh]', 'status'],
@@ -299,13 +357,20 @@ def _run_plot(args: argparse.Namespace, scene: Scene) -> int:
     from uav_global_planner.cli.plotting import plot_scene_html, plot_scene_paths
     if not args.output and not args.html and not args.profile:
         raise InvalidInputError('plot needs -o PNG, --html FILE, --profile PNG or more')
-    result = _warm_planner(scene).plan(scene.start, scene.goal, args.algorithm, via=scene.via)
+    budget = PlanBudget(scene.config.max_planning_time, progress=_progress_to_stderr)
+    planner, ready = _warm_planner(scene, budget)
+    result, admissions = _plan_admitted(planner, scene, args.algorithm, ready, budget=budget)
+    for line in map_report_lines(scene.map_reports) + admission_lines(admissions):
+        print(line)
     print(format_summary(result))
     if not result.ok:
         return EXIT_PLAN_FAILED
     paths = {f'{args.algorithm} raw': result.path,
              f'{args.algorithm} smoothed': result.smoothed_path}
     title = f'{scene.name}: {args.algorithm}'
+    if scene.unknown is not None:
+        title += (f', {result.unknown_length_m:.1f} m in unknown space '
+                  f'({scene.config.unknown_space})')
     if args.output:
         plot_scene_paths(scene, paths, args.output, title=title)
         print(f'plot written to {args.output}')
@@ -339,6 +404,8 @@ def main(argv: Optional[List[str]] = None) -> int:
         return EXIT_INVALID_INPUT
     try:
         scene = _scene_from_args(args)
+        # The ground and its AGL band for the final planning margin (a map raises gamma).
+        scene = with_ground(scene, scene.terrain)
         runner = {'plan': _run_plan, 'compare': _run_compare, 'plot': _run_plot,
                   'export': run_export}[args.command]
         return runner(args, scene)

@@ -30,6 +30,10 @@ _OBSTACLE_ALPHA = 0.25
 _Z_OBSTACLES, _Z_PATHS, _Z_ENDPOINTS = 1, 10, 20
 # Point sets are drawn from an evenly spread subset: a million dots only paint the same pixels.
 _MAX_DRAWN_POINTS = 60_000
+# The ground (terrain, flat ground) and the AGL band's surfaces; the 3D view draws them from at
+# most this many lattice nodes per axis.
+_GROUND_COLOUR, _BAND_COLOUR = '#8c7a5b', 'tab:cyan'
+_MAX_GROUND_NODES = 80
 _MAX_HTML_POINTS = 200_000
 # Corners of a box as (x, y, z) choices of (min, max), and its six faces.
 _BOX_FACES = ((0, 1, 3, 2), (4, 5, 7, 6), (0, 1, 5, 4), (2, 3, 7, 6), (0, 2, 6, 4), (1, 3, 7, 5))
@@ -66,6 +70,42 @@ def _draw_obstacles_3d(axes, obstacles: ObstacleSet) -> None:
         pts = _drawn_points(obstacles.points, _MAX_DRAWN_POINTS)
         axes.scatter(pts[:, 0], pts[:, 1], pts[:, 2], s=1, c='0.35', alpha=0.3, linewidths=0,
                      zorder=_Z_OBSTACLES, rasterized=True)
+    for field in obstacles.height_fields:
+        x, y, z = _height_field_nodes(field)
+        ground = field.label in ('terrain', 'ground')
+        axes.plot_surface(x, y, z, color=_GROUND_COLOUR if ground else _BAND_COLOUR,
+                          alpha=0.35 if ground else 0.1, linewidth=0, shade=ground,
+                          zorder=_Z_OBSTACLES)
+
+
+def _height_field_nodes(field):
+    """x, y, z of an evenly spread subset of a height field's lattice (edges kept)."""
+    ny, nx = field.heights.shape
+    cols = np.unique(np.linspace(0, nx - 1, min(nx, _MAX_GROUND_NODES)).astype(np.int64))
+    rows = np.unique(np.linspace(0, ny - 1, min(ny, _MAX_GROUND_NODES)).astype(np.int64))
+    x, y = np.meshgrid(field.origin[0] + cols * field.spacing[0],
+                       field.origin[1] + rows * field.spacing[1])
+    return x, y, np.asarray(field.heights)[np.ix_(rows, cols)]
+
+
+def _draw_ground_under(axes, obstacles: ObstacleSet, paths: Mapping[str, np.ndarray],
+                       horizontal: int) -> None:
+    """Side view: the ground under the first smoothed path (solid) and the AGL band's
+    surfaces there (dashed), against the path's ``horizontal`` coordinate."""
+    smoothed = [np.asarray(p, dtype=np.float64).reshape(-1, 3) for label, p in paths.items()
+                if not label.endswith('raw') and len(p)]
+    if not obstacles.height_fields or not smoothed:
+        return
+    path = smoothed[0]
+    for field in obstacles.height_fields:
+        lo, hi = field.extent
+        inside = np.all((path[:, :2] >= lo) & (path[:, :2] <= hi), axis=1)
+        under = np.where(inside, field.height_at(np.clip(path[:, :2], lo, hi)), np.nan)
+        ground = field.label in ('terrain', 'ground')
+        axes.plot(path[:, horizontal], under, color=_GROUND_COLOUR if ground else _BAND_COLOUR,
+                  linestyle='-' if ground else '--', linewidth=1.5 if ground else 0.8,
+                  label=f'{field.label} under the path' if ground else None,
+                  zorder=_Z_OBSTACLES)
 
 
 def _draw_obstacles_2d(axes, obstacles: ObstacleSet, horizontal: int, vertical: int) -> None:
@@ -155,6 +195,8 @@ def plot_scene_paths(scene: Scene, paths: Mapping[str, np.ndarray],
                                                    ((0, 2), 'side view (x-z)', side_ratio))):
         axes = figure.add_subplot(grid[number + 1])
         _draw_obstacles_2d(axes, scene.obstacles, *index)
+        if index[1] == 2:
+            _draw_ground_under(axes, scene.obstacles, paths, index[0])
         _draw_paths(axes, scene, paths, index)
         axes.set_xlim(lo[index[0]], hi[index[0]])
         axes.set_ylim(lo[index[1]], hi[index[1]])

@@ -1,11 +1,13 @@
 """Turning planner results into JSON-ready dictionaries and text tables."""
 
 import math
-from typing import Any, Dict, List, Optional, Sequence
+from typing import Any, Dict, Iterable, List, Optional, Sequence
 
 import numpy as np
 
+from uav_global_planner.core.mapfiles import MapReport
 from uav_global_planner.core.result import PlanResult
+from uav_global_planner.core.start_admission import Admission
 
 
 def finite_or_none(value: float) -> Any:
@@ -60,6 +62,7 @@ def result_to_dict(result: PlanResult) -> Dict[str, Any]:
         'climb_energy_wh': finite_or_none(energy.climb_energy_j / 3600.0 if energy
                                           else math.nan),
         'planning_margin': finite_or_none(result.planning_margin),
+        'unknown_length_m': finite_or_none(result.unknown_length_m),
         'flight': flight_to_dict(result),
     }
 
@@ -104,7 +107,8 @@ def format_summary(result: PlanResult) -> str:
             f'shortcut: {len(result.shortcut_path)} waypoints, {result.shortcut_length_m:.3f} m',
             f'smoothed: {result.smoothed_length_m:.3f} m, min clearance '
             f'{result.min_clearance_m:.3f} m (gamma {result.safety_margin} m), '
-            f'{len(result.repaired_stretches)} repaired stretch(es)',
+            f'{len(result.repaired_stretches)} repaired stretch(es), '
+            f'{result.unknown_length_m:.3f} m in unknown space',
             f'trajectory: {result.duration_s:.2f} s; grid build {result.grid_build_time_s:.3f} s, '
             f'smoothing + timing {result.smoothing_time_s * 1e3:.2f} ms',
         ]
@@ -118,3 +122,27 @@ def format_summary(result: PlanResult) -> str:
                 f"{flight['peak_tilt_deg']:.1f} deg, thrust/weight "
                 f"{flight['peak_thrust_to_weight']:.2f}")
     return '\n'.join(lines)
+
+
+def map_report_lines(reports: Iterable[MapReport]) -> List[str]:
+    """One ``map file ...`` line per map file read: points read, dropped (and why), kept,
+    extent [m] and resolution."""
+    return [f'map file {report.summary()}' for report in reports]
+
+
+def admission_to_dict(admissions: Iterable[Admission]) -> Dict[str, Any]:
+    """``start_adjusted``, ``start_note`` ('' when not moved) and ``requested_start`` [m], the
+    goal's alike: what admission did to the points asked for."""
+    output: Dict[str, Any] = {}
+    for admission in admissions:
+        values = admission.values()
+        values[f'requested_{admission.which}'] = [
+            finite_or_none(v) for v in admission.requested]
+        output.update(values)
+    return output
+
+
+def admission_lines(admissions: Iterable[Admission]) -> List[str]:
+    """One ``start adjusted: ...`` (``goal adjusted: ...``) line per moved point."""
+    return [f'{admission.which} adjusted: {admission.note}' for admission in admissions
+            if admission.adjusted]

@@ -8,6 +8,10 @@ says so (the pattern of Nav2's ``cancel_checker``) and
 :class:`~uav_global_planner.core.errors.PlanningTimeoutError`, naming the stage, when the budget
 is spent. A plan that runs longer than :data:`REPORT_AFTER_S` reports its stage through the
 ``progress`` callback, at each stage change and every :data:`REPORT_EVERY_S`.
+
+The budget counts wall time less the time numba spends compiling kernels meanwhile
+(:func:`~uav_global_planner.core.jit.compile_seconds`): a first run after an install compiles
+them once (they are kept on disk), and that one-off cost says nothing about the plan.
 """
 
 from enum import Enum
@@ -16,6 +20,7 @@ import time
 from typing import Callable, Optional
 
 from uav_global_planner.core.errors import PlanningCancelledError, PlanningTimeoutError
+from uav_global_planner.core.jit import compile_seconds
 
 #: A plan reports progress once it has run this long [s].
 REPORT_AFTER_S = 1.0
@@ -55,13 +60,15 @@ class PlanBudget:
         self._cancel = cancel
         self._progress = progress
         self.started = time.perf_counter()
+        self._compiled_before = compile_seconds()
         self.stage = PlanStage.GRID
         self._last_report = -math.inf
 
     @property
     def elapsed_s(self) -> float:
-        """Time since the request began [s]."""
-        return time.perf_counter() - self.started
+        """Time since the request began, less kernel compilation meanwhile [s]."""
+        compiling = compile_seconds() - self._compiled_before
+        return time.perf_counter() - self.started - compiling
 
     def enter(self, stage: PlanStage) -> None:
         """Begin ``stage``, reporting it when the plan is already long; then :meth:`check`."""

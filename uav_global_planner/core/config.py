@@ -5,7 +5,7 @@ The settings themselves (types, units, ranges, defaults, words) are the table of
 """
 
 from dataclasses import dataclass, fields, replace
-from typing import Any, Dict, Mapping
+from typing import Any, Dict, Mapping, Union
 
 from uav_global_planner.core.errors import InvalidInputError
 from uav_global_planner.core.grid import VoxelGrid
@@ -57,10 +57,16 @@ class PlannerConfig:
     yaw_mode: str = _DEFAULT['yaw_mode']
     vehicle_radius: float = _DEFAULT['vehicle_radius']
     tracking_margin: float = _DEFAULT['tracking_margin']
+    start_tolerance: float = _DEFAULT['start_tolerance']
     climb_weight: float = _DEFAULT['climb_weight']
     descent_weight: float = _DEFAULT['descent_weight']
+    unknown_space: str = _DEFAULT['unknown_space']
+    unknown_cost: float = _DEFAULT['unknown_cost']
     vehicle_mass: float = _DEFAULT['vehicle_mass']
     hover_power: float = _DEFAULT['hover_power']
+    ground: Union[str, float] = _DEFAULT['ground']
+    min_agl: float = _DEFAULT['min_agl']
+    max_agl: float = _DEFAULT['max_agl']
 
     def with_changes(self, **changes: Any) -> 'PlannerConfig':
         """Return a validated copy with some fields replaced."""
@@ -103,6 +109,10 @@ def validate_config(config: PlannerConfig) -> PlannerConfig:
         raise InvalidInputError(f'config must be a PlannerConfig, got {type(config).__name__}')
     values = {entry.field: entry.check(getattr(config, entry.field))
               for entry in planner_settings() if entry.field}
+    if 0.0 < values['max_agl'] <= values['min_agl']:
+        raise InvalidInputError(f'max_agl must be above min_agl when both are on (> 0), got '
+                                f'min_agl {values["min_agl"]} m and max_agl '
+                                f'{values["max_agl"]} m')
     # Cross-field rules: consistent bounds and a grid below the voxel cap.
     VoxelGrid.from_bounds(values['bounds_min'], values['bounds_max'], values['resolution'],
                           values['max_voxels'])

@@ -8,9 +8,16 @@ grid:
   blocked nodes are one run, whose two ends the exact test finds;
 - each occupied point of a point set stamps its ball of radius gamma into the grid, testing
   the nodes of the ball, about pi / 6 (2 gamma / delta + 3)^3 of them, so a cloud costs time
-  proportional to points x (gamma / delta)^3 however large the grid. Only when the balls
-  overlap so much that they would visit every node hundreds of times does each node ask a
-  KD-tree of the points for its nearest one instead (time proportional to the nodes).
+  proportional to points x (gamma / delta)^3 however large the grid. Dense clouds, whose
+  balls would visit every node several times (a scan at a few centimetres: a dozen points a
+  cell), go box by box through the exact distance transform of their cells
+  (:mod:`~uav_global_planner.core.dense_inflation`, time close to linear in the grid), or,
+  when gamma spans so many cells that its boxes would be huge, a nearest-point query of every
+  node; each box takes the cheapest of the three, all of them exact;
+- a height field (terrain, ground, an AGL floor or ceiling) blocks, in each grid column, the
+  nodes below (above) one limit, found by bisection on the terrain's own distance function
+  (:func:`~uav_global_planner.core.terrain.column_limits`): its solid is closed downwards
+  (upwards), so the distance is monotone along a column.
 
 The passes are compiled loops (numba, see :mod:`uav_global_planner.core.jit`) that write straight
 into the mask, without temporaries. Without numba the same rule runs as vectorised numpy passes
@@ -24,15 +31,18 @@ zones) must use the one floating-point formula and the one window scheme of both
 they stay side by side.
 """
 
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import FIRST_EXCEPTION, ThreadPoolExecutor, wait
 import math
 import os
 import threading
-from typing import Optional, Union
+from typing import Callable, Optional, Sequence, Union
 
 import numpy as np
 from scipy.spatial import cKDTree
 
+from uav_global_planner.core.dense_inflation import (bin_points, bucket, bucket_spans, CellBins,
+                                                     halo_cells, mark_box, mark_vectorised,
+                                                     transform_cost)
 from uav_global_planner.core.errors import InvalidInputError
 from uav_global_planner.core.grid import VoxelGrid
 from uav_global_planner.core.jit import JIT_ENABLED, njit
@@ -41,6 +51,7 @@ from uav_global_planner.core.sparse_grid import (BRICK, choose_layout, SparseBui
                                                  SparseMask)
 from uav_global_planner.core.spatial_index import (_column_part, _finish, shape_bounds,
                                                    stamp_shapes)
+from uav_global_planner.core.terrain import column_limits
 
 # Largest number of (point, nearby node) pairs, or of nodes, handled at once by the vectorised
 # passes: bounds their temporary memory (about 100 bytes each) whatever gamma / delta and the
@@ -52,6 +63,26 @@ _PAIR_BUDGET = 1 << 18
 # vectorised visits cost about 100 ns.
 _VISITS_PER_NODE_COMPILED = 300.0
 _VISITS_PER_NODE_VECTORISED = 8.0
+# A cell of the distance transform of dense clouds (with its halo: sorting the points in,
+# three passes, the bounds) costs about as much as this many compiled visits (measured on a
+# 2 cm room scan and a voxel map: 10-15 ns a cell against about 2 ns a visit). The exact test of
+# its shell is counted at one visit per cell it reads.
+_CELL_COST = 8.0
+# Largest box of the distance transform, halo included [cells]: 8 bytes a cell of scratch.
+# Beyond it (gamma hundreds of cells wide) the stamping or the nearest-point query is used.
+_MAX_TRANSFORM_CELLS = 1 << 23
+# Edge of the boxes of the transform on a whole-grid mask [nodes]: some 0.1 s of work each,
+# the most a build overruns its checkpoint by.
+_DENSE_BOX = 8 * BRICK
+# Compiled visits between two checkpoints of the stamping of a sparse cloud: some 30 ms.
+_STAMP_CHUNK = 1 << 24
+# How often a build on several threads calls its checkpoint [s].
+_POLL_S = 0.01
+
+#: ``checkpoint()``: called between bounded pieces of a build, milliseconds apart; whatever it
+#: raises stops the build (a plan's time budget: :meth:`~uav_global_planner.core.budget.
+#: PlanBudget.check`).
+Checkpoint = Optional[Callable[[], None]]
 
 #: A blocked mask in either layout.
 Mask = Union[np.ndarray, SparseMask]
@@ -74,7 +105,8 @@ _ZERO_BASE.setflags(write=False)
 
 
 def blocked_mask(grid: VoxelGrid, obstacles: ObstacleSet, safety_margin: float,
-                 out: Optional[np.ndarray] = None, layout: str = 'auto') -> Mask:
+                 out: Optional[np.ndarray] = None, layout: str = 'auto',
+                 checkpoint: Checkpoint = None) -> Mask:
     """Boolean occupancy of every node: True where the distance to an obstacle is <= gamma.
 
     Parameters
@@ -91,6 +123,9 @@ def blocked_mask(grid: VoxelGrid, obstacles: ObstacleSet, safety_margin: float,
         (:func:`~uav_global_planner.core.sparse_grid.choose_layout`): by default grids from
         :data:`~uav_global_planner.core.sparse_grid.SPARSE_MIN_NODES` nodes up get the
         block-sparse mask. Both layouts block the same nodes, to the bit.
+    checkpoint : callable, optional
+        :data:`Checkpoint`, called between pieces of the build (windows, boxes, chunks of
+        points), milliseconds apart; what it raises stops the build and is raised here.
 
     Returns
     -------
@@ -104,16 +139,18 @@ def blocked_mask(grid: VoxelGrid, obstacles: ObstacleSet, safety_margin: float,
     """
     gamma = _checked_margin(safety_margin)
     if out is None and choose_layout(grid.size, layout) == 'sparse':
-        return _sparse_mask(grid, obstacles, gamma)
+        return _sparse_mask(grid, obstacles, gamma, checkpoint)
     if out is None:
         blocked = np.zeros(grid.shape, dtype=bool)
     else:
         blocked = _checked_out(grid, out)
         blocked[...] = False
     if JIT_ENABLED:
-        _mark_compiled(grid, obstacles, gamma, blocked)
+        _mark_compiled(grid, obstacles, gamma, blocked, checkpoint)
     else:
-        _mark_vectorised(grid, obstacles, gamma, blocked)
+        _mark_vectorised(grid, obstacles, gamma, blocked, checkpoint)
+    _mark_terrain(grid, obstacles, gamma, blocked, _ZERO_BASE, _ZERO_BASE,
+                  np.asarray(grid.shape, dtype=np.int64) - 1, checkpoint)
     return blocked
 
 
@@ -169,6 +206,7 @@ def reinflate_tiles(grid: VoxelGrid, obstacles: ObstacleSet, safety_margin: floa
     last = np.minimum((tiles.max(axis=0) + 1) * size - 1, shape - 1)
     origin = np.ascontiguousarray(grid.bounds_min, dtype=np.float64)
     delta = float(grid.resolution)
+    _mark_terrain(grid, obstacles, gamma, blocked, _ZERO_BASE, first, last)
     rows = obstacles.zone_rows
     if len(rows):
         lo, hi = shape_bounds(obstacles.shape_kind[rows], obstacles.shape_params[rows])
@@ -201,10 +239,11 @@ def reinflate_tiles(grid: VoxelGrid, obstacles: ObstacleSet, safety_margin: floa
         near = np.all((cloud >= low) & (cloud <= high), axis=1)
         cloud = _relevant_points(grid, cloud[near], gamma)
         if len(cloud):
-            _stamp_points(blocked, origin, delta, _in_memory_order(grid, cloud), gamma)
+            _mark_points(grid, cloud, gamma, blocked, first, last, None)
 
 
-def _sparse_mask(grid: VoxelGrid, obstacles: ObstacleSet, gamma: float) -> SparseMask:
+def _sparse_mask(grid: VoxelGrid, obstacles: ObstacleSet, gamma: float,
+                 checkpoint: Checkpoint = None) -> SparseMask:
     """The block-sparse mask, window by window (module notes of
     :mod:`~uav_global_planner.core.sparse_grid`).
 
@@ -217,14 +256,15 @@ def _sparse_mask(grid: VoxelGrid, obstacles: ObstacleSet, gamma: float) -> Spars
     """
     if not JIT_ENABLED:
         builder = SparseBuilder(grid.shape)
-        dense = blocked_mask(grid, obstacles, gamma, layout='dense')
+        dense = blocked_mask(grid, obstacles, gamma, layout='dense', checkpoint=checkpoint)
         assert isinstance(dense, np.ndarray)
         builder.pack(dense, _ZERO_BASE)
         return builder.finish()
     shape = np.asarray(grid.shape, dtype=np.int64)
-    work = _SparseWork(grid, obstacles, gamma, np.zeros(3, np.int64), shape - 1, None)
+    work = _SparseWork(grid, obstacles, gamma, np.zeros(3, np.int64), shape - 1, None,
+                       checkpoint)
     builder = SparseBuilder(grid.shape, capacity=len(work.busy) * (_WINDOW // BRICK) ** 3)
-    work.stamp(builder, work.busy, None)
+    work.stamp(builder, work.busy, None, checkpoint)
     return builder.finish()
 
 
@@ -276,7 +316,8 @@ class _SparseWork:
     """
 
     def __init__(self, grid: VoxelGrid, obstacles: ObstacleSet, gamma: float,
-                 first: np.ndarray, last: np.ndarray, points: Optional[np.ndarray]) -> None:
+                 first: np.ndarray, last: np.ndarray, points: Optional[np.ndarray],
+                 checkpoint: Checkpoint = None) -> None:
         self.grid = grid
         self.obstacles = obstacles
         self.gamma = gamma
@@ -309,43 +350,46 @@ class _SparseWork:
         self.points = np.empty((0, 3))
         if len(cloud):
             self.points = _relevant_points(grid, cloud, gamma)
+        #: The points by their nearest node, listed under the windows within their halo.
+        self.bins = bin_points(self.points, self.origin, self.delta, gamma)
         self.lists = [_bucket_ranges(self.zone_ranges, self.windows),
                       _bucket_ranges(self.sphere_ranges, self.windows),
                       _bucket_ranges(self.box_ranges, self.windows),
-                      _bucket_points(self.points, self.origin, self.delta, gamma + self.delta,
-                                     self.shape, self.windows)]
+                      bucket(self.bins, self.shape, _WINDOW)]
+        self.first = np.asarray(first, dtype=np.int64)
+        self.last = np.asarray(last, dtype=np.int64)
+        #: Per height field: its column limits over [first, last] and whether it is 'below'.
+        self.terrain = [(column_limits(field, self.origin, self.delta, self.first, self.last,
+                                       gamma, checkpoint), field.side == 'below')
+                        for field in obstacles.height_fields]
+        reached = np.any(np.stack([np.diff(start) for start, _ in self.lists]), axis=0)
+        for limits, below in self.terrain:
+            reached |= _terrain_windows(limits, below, self.first, self.last, self.windows)
         #: Windows some obstacle reaches.
-        self.busy = np.flatnonzero(np.any(np.stack([np.diff(start)
-                                                    for start, _ in self.lists]), axis=0))
+        self.busy = np.flatnonzero(reached)
 
-    def stamp(self, builder: SparseBuilder, windows: np.ndarray, clear) -> None:
+    def stamp(self, builder: SparseBuilder, windows: np.ndarray, clear,
+              checkpoint: Checkpoint = None) -> None:
         """Stamp and pack ``windows``; with ``clear`` = (tile node ranges, their window lists),
         each window starts from the builder's bricks with the tiles' nodes cleared, else from
-        free nodes.
+        free nodes. ``checkpoint`` is called between windows.
 
         A full build stamps the windows on up to :data:`_THREADS` threads (the kernels release
         the interpreter lock), each into its own scratch block; packing is serialised. The
         rows the mixed bricks get then depend on the threads' order, the mask does not.
         """
-        workers = min(_THREADS, _cpu_count(), len(windows) // 4)
-        if clear is not None or workers < 2:
-            scratch = self._scratch()
-            for window in windows:
-                block, base = self._stamp_window(int(window), scratch, builder, clear)
-                builder.pack(block, base)
-            return
+        workers = 1 if clear is not None else min(_THREADS, _cpu_count(), len(windows) // 4)
         lock = threading.Lock()
+        scratches = threading.local()
 
-        def run(part: np.ndarray) -> None:
-            scratch = self._scratch()
-            for window in part:
-                block, base = self._stamp_window(int(window), scratch, builder, None)
-                with lock:
-                    builder.pack(block, base)
+        def run(window: int) -> None:
+            if not hasattr(scratches, 'block'):
+                scratches.block = self._scratch()
+            block, base = self._stamp_window(int(window), scratches.block, builder, clear)
+            with lock:
+                builder.pack(block, base)
 
-        with ThreadPoolExecutor(max_workers=workers) as pool:
-            for done in [pool.submit(run, windows[w::workers]) for w in range(workers)]:
-                done.result()
+        _run_tasks(list(windows), run, checkpoint, workers)
 
     def _scratch(self) -> np.ndarray:
         return np.zeros(int(np.prod(np.minimum(self.shape, _WINDOW))), dtype=np.bool_)
@@ -364,6 +408,8 @@ class _SparseWork:
             builder.unpack(block, base)
             _clear_ranges(block, base, spans, found[start[window]:start[window + 1]])
         items = [found[start[window]:start[window + 1]] for start, found in self.lists]
+        for limits, below in self.terrain:
+            _fill_columns(block, base, self.first, self.last, limits, below)
         if len(items[0]):
             _stamp_shapes_in(block, base, self.origin, self.delta, self.zone_ranges, self.rows,
                              items[0], obstacles.shape_kind, obstacles.shape_params,
@@ -375,13 +421,73 @@ class _SparseWork:
             _stamp_boxes_in(block, base, self.origin, self.delta, self.box_ranges, items[2],
                             self.mins, self.maxs, gamma)
         if len(items[3]):
-            if len(items[3]) * _ball_visits(self.grid, 1, gamma) > (
-                    _VISITS_PER_NODE_COMPILED * block.size):
-                _mark_by_nearest_point_in(self.grid, self.points[items[3]], gamma, block, base)
-            else:
-                _stamp_points_in(block, base, self.origin, self.delta, self.points, items[3],
-                                 gamma)
+            lo = np.maximum(base, self.first)
+            hi = np.minimum(base + np.asarray(extent) - 1, self.last)
+            if np.all(lo <= hi):
+                _points_in_box(block, base, self.grid, self.bins, items[3], lo, hi, gamma)
         return block, base
+
+
+def _mark_terrain(grid: VoxelGrid, obstacles: ObstacleSet, gamma: float, block: np.ndarray,
+                  base: np.ndarray, first: np.ndarray, last: np.ndarray,
+                  checkpoint: Checkpoint = None) -> None:
+    """Every height field's nodes within gamma in the node box [first, last] (inclusive), on
+    the window ``block`` of the grid from node ``base`` on, in place (``checkpoint`` between
+    pieces of the work).
+
+    Each column's limit comes from :func:`~uav_global_planner.core.terrain.column_limits`,
+    which decides every node it tests with the terrain's own distance function, so the mask
+    agrees with ``ObstacleSet.distance`` to the bit.
+    """
+    if not obstacles.height_fields:
+        return
+    first = np.maximum(np.asarray(first, dtype=np.int64), 0)
+    last = np.minimum(np.asarray(last, dtype=np.int64), np.asarray(grid.shape) - 1)
+    if np.any(first > last):
+        return
+    origin = np.ascontiguousarray(grid.bounds_min, dtype=np.float64)
+    for field in obstacles.height_fields:
+        limits = column_limits(field, origin, float(grid.resolution), first, last, gamma,
+                               checkpoint)
+        _fill_columns(block, base, first, last, limits, field.side == 'below')
+
+
+@njit
+def _fill_columns(block, base, first, last, limits, below):  # pragma: no cover - compiled
+    """Block, in each column of the node box [first, last], the nodes under its limit
+    (``below``) or from it on (:func:`~uav_global_planner.core.terrain.column_limits`), within
+    the window ``block`` of the grid from node ``base`` on."""
+    i0 = max(first[0], base[0])
+    i1 = min(last[0], base[0] + block.shape[0] - 1)
+    j0 = max(first[1], base[1])
+    j1 = min(last[1], base[1] + block.shape[1] - 1)
+    k0 = max(first[2], base[2])
+    k1 = min(last[2], base[2] + block.shape[2] - 1)
+    for i in range(i0, i1 + 1):
+        for j in range(j0, j1 + 1):
+            limit = limits[i - first[0], j - first[1]]
+            a = k0 if below else max(limit, k0)
+            b = min(limit - 1, k1) if below else k1
+            for k in range(a, b + 1):
+                block[i - base[0], j - base[1], k - base[2]] = True
+
+
+def _terrain_windows(limits: np.ndarray, below: bool, first: np.ndarray, last: np.ndarray,
+                     windows: np.ndarray) -> np.ndarray:
+    """Which build windows (flat, C order) hold a node that the column limits block."""
+    reached = np.zeros(tuple(int(w) for w in windows), dtype=bool)
+    for a in range(int(first[0] // _WINDOW), int(last[0] // _WINDOW) + 1):
+        i0 = max(a * _WINDOW, int(first[0])) - int(first[0])
+        i1 = min((a + 1) * _WINDOW - 1, int(last[0])) - int(first[0])
+        for b in range(int(first[1] // _WINDOW), int(last[1] // _WINDOW) + 1):
+            j0 = max(b * _WINDOW, int(first[1])) - int(first[1])
+            j1 = min((b + 1) * _WINDOW - 1, int(last[1])) - int(first[1])
+            part = limits[i0:i1 + 1, j0:j1 + 1]
+            for c in range(int(first[2] // _WINDOW), int(last[2] // _WINDOW) + 1):
+                k0 = max(c * _WINDOW, int(first[2]))
+                k1 = min((c + 1) * _WINDOW - 1, int(last[2]))
+                reached[a, b, c] = (part.max() > k0) if below else (part.min() <= k1)
+    return reached.reshape(-1)
 
 
 def _cpu_count() -> int:
@@ -390,6 +496,42 @@ def _cpu_count() -> int:
         return len(os.sched_getaffinity(0))
     except AttributeError:  # not on Linux
         return os.cpu_count() or 1
+
+
+def _run_tasks(tasks: Sequence, run: Callable, checkpoint: Checkpoint, workers: int) -> None:
+    """``run(task)`` for every task, on ``workers`` threads (the kernels release the
+    interpreter lock) when it is 2 or more, calling ``checkpoint()`` between tasks (every
+    :data:`_POLL_S` from this thread when there are workers). What a task or the checkpoint
+    raises is raised here, once the other threads have finished the task in hand.
+    """
+    if workers < 2:
+        for task in tasks:
+            if checkpoint is not None:
+                checkpoint()
+            run(task)
+        return
+    stop = threading.Event()
+
+    def part(chosen: Sequence) -> None:
+        for task in chosen:
+            if stop.is_set():
+                return
+            run(task)
+
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        futures = [pool.submit(part, tasks[w::workers]) for w in range(workers)]
+        try:
+            while True:
+                done, pending = wait(futures, timeout=_POLL_S, return_when=FIRST_EXCEPTION)
+                for future in done:
+                    future.result()
+                if not pending:
+                    return
+                if checkpoint is not None:
+                    checkpoint()
+        except BaseException:
+            stop.set()
+            raise
 
 
 def _clipped(ranges: np.ndarray, first: np.ndarray, last: np.ndarray) -> np.ndarray:
@@ -412,79 +554,10 @@ def _clear_ranges(block, base, spans, items):  # pragma: no cover - compiled
                     block[i - base[0], j - base[1], k - base[2]] = False
 
 
-@njit
-def _list_item(start, fill, items, step, item, lo, hi, windows):  # pragma: no cover - compiled
-    """One item's part of a two-pass window listing: pass 0 (``step`` 0) counts it under each
-    window from ``lo`` to ``hi`` (window indices, inclusive, per axis) in ``start[w + 1]``;
-    pass 1 writes it at ``fill[w]`` of ``items``."""
-    for a in range(lo[0], hi[0] + 1):
-        for b in range(lo[1], hi[1] + 1):
-            for c in range(lo[2], hi[2] + 1):
-                w = (a * windows[1] + b) * windows[2] + c
-                if step:
-                    items[fill[w]] = item
-                    fill[w] += 1
-                else:
-                    start[w + 1] += 1
-
-
-@njit
-def _bucket_ranges(ranges, windows):  # pragma: no cover - compiled
+def _bucket_ranges(ranges: np.ndarray, windows: np.ndarray):
     """Items listed under the windows their index ranges meet: ``start`` (one per window and one
     more) and ``items`` (C order over windows, items in order within a window)."""
-    count = windows[0] * windows[1] * windows[2]
-    start = np.zeros(count + 1, dtype=np.int64)
-    lo = np.empty(3, dtype=np.int64)
-    hi = np.empty(3, dtype=np.int64)
-    for step in range(2):
-        fill = start[:-1].copy()
-        items = np.empty(start[count] if step else 0, dtype=np.int32)
-        for s in range(ranges.shape[0]):
-            if (ranges[s, 0, 0] > ranges[s, 1, 0] or ranges[s, 0, 1] > ranges[s, 1, 1]
-                    or ranges[s, 0, 2] > ranges[s, 1, 2]):
-                continue
-            for axis in range(3):
-                lo[axis] = ranges[s, 0, axis] // _WINDOW
-                hi[axis] = ranges[s, 1, axis] // _WINDOW
-            _list_item(start, fill, items, step, s, lo, hi, windows)
-        if not step:
-            for w in range(count):
-                start[w + 1] += start[w]
-    return start, items
-
-
-@njit
-def _bucket_points(points, origin, delta, reach, shape, windows):  # pragma: no cover
-    """As :func:`_bucket_ranges` for the points, whose range is every node within ``reach`` [m]
-    (gamma and a cell of slack: wider than what the stamping visits)."""
-    count = windows[0] * windows[1] * windows[2]
-    start = np.zeros(count + 1, dtype=np.int64)
-    lo = np.empty(3, dtype=np.int64)
-    hi = np.empty(3, dtype=np.int64)
-    inverse = 1.0 / delta
-    cells = reach * inverse
-    for step in range(2):
-        fill = start[:-1].copy()
-        items = np.empty(start[count] if step else 0, dtype=np.int32)
-        for n in range(points.shape[0]):
-            empty = False
-            for axis in range(3):
-                cell = (points[n, axis] - origin[axis]) * inverse
-                low = cell - cells
-                high = cell + cells
-                low = min(max(low, -2.0), shape[axis] + 1.0)
-                high = min(max(high, -2.0), shape[axis] + 1.0)
-                lo[axis] = max(int(math.floor(low)), 0) // _WINDOW
-                hi[axis] = min(int(math.ceil(high)), shape[axis] - 1) // _WINDOW
-                if math.floor(low) > shape[axis] - 1 or math.ceil(high) < 0:
-                    empty = True
-            if empty:
-                continue
-            _list_item(start, fill, items, step, n, lo, hi, windows)
-        if not step:
-            for w in range(count):
-                start[w + 1] += start[w]
-    return start, items
+    return bucket_spans(ranges[:, 0, :], ranges[:, 1, :], _WINDOW, windows)
 
 
 @njit
@@ -622,7 +695,7 @@ def _mark_zones(grid: VoxelGrid, obstacles: ObstacleSet, gamma: float,
 # --- compiled passes ------------------------------------------------------------------------
 
 def _mark_compiled(grid: VoxelGrid, obstacles: ObstacleSet, gamma: float,
-                   blocked: np.ndarray) -> None:
+                   blocked: np.ndarray, checkpoint: Checkpoint = None) -> None:
     """Every obstacle's nodes within gamma, by the compiled loops, in place."""
     _mark_zones(grid, obstacles, gamma, blocked)
     origin = np.ascontiguousarray(grid.bounds_min, dtype=np.float64)
@@ -632,20 +705,114 @@ def _mark_compiled(grid: VoxelGrid, obstacles: ObstacleSet, gamma: float,
         radii = np.ascontiguousarray(obstacles.sphere_radii, dtype=np.float64)
         reach = (radii + gamma)[:, None]
         ranges = _block_ranges(grid, centers - reach, centers + reach)
-        _stamp_spheres(blocked, origin, delta, ranges, centers, radii, gamma)
+        for items in _in_chunks(ranges, checkpoint):
+            _stamp_spheres_in(blocked, _ZERO_BASE, origin, delta, ranges, items, centers, radii,
+                              gamma)
     if len(obstacles.box_mins):
         mins = np.ascontiguousarray(obstacles.box_mins, dtype=np.float64)
         maxs = np.ascontiguousarray(obstacles.box_maxs, dtype=np.float64)
         ranges = _block_ranges(grid, mins - gamma, maxs + gamma)
-        _stamp_boxes(blocked, origin, delta, ranges, mins, maxs, gamma)
+        for items in _in_chunks(ranges, checkpoint):
+            _stamp_boxes_in(blocked, _ZERO_BASE, origin, delta, ranges, items, mins, maxs, gamma)
     if len(obstacles.points):
+        if checkpoint is not None:
+            checkpoint()
         points = _relevant_points(grid, obstacles.points, gamma)
-        if len(points) == 0:
+        if len(points):
+            _mark_points(grid, points, gamma, blocked, _ZERO_BASE,
+                         np.asarray(grid.shape, dtype=np.int64) - 1, checkpoint)
+
+
+def _in_chunks(ranges: np.ndarray, checkpoint: Checkpoint):
+    """The item numbers of ``ranges`` (B, 2, 3 index ranges) in runs whose ranges hold about
+    :data:`_STAMP_CHUNK` nodes together (one item at least), ``checkpoint()`` before each;
+    all at once without a checkpoint."""
+    if checkpoint is None:
+        yield np.arange(len(ranges), dtype=np.int64)
+        return
+    sides = np.maximum(ranges[:, 1] - ranges[:, 0] + 1, 0).astype(np.float64)
+    total = np.cumsum(np.prod(sides, axis=1))
+    begin = 0
+    while begin < len(ranges):
+        checkpoint()
+        done = float(total[begin - 1]) if begin else 0.0
+        end = max(int(np.searchsorted(total, done + _STAMP_CHUNK, side='right')), begin + 1)
+        yield np.arange(begin, end, dtype=np.int64)
+        begin = end
+
+
+def _mark_points(grid: VoxelGrid, points: np.ndarray, gamma: float, blocked: np.ndarray,
+                 first: np.ndarray, last: np.ndarray, checkpoint: Checkpoint) -> None:
+    """Block the nodes within gamma of ``points`` (relevant ones) on a whole-grid mask, in
+    place: every such node of the box [first, last], and no node a full build leaves free.
+
+    A sparse cloud, whose balls visit fewer nodes than :data:`_CELL_COST` times the box has,
+    stamps them (in chunks of points between checkpoints). A denser one goes box by box
+    (:data:`_DENSE_BOX` nodes a side), each by its cheapest exact pass (:func:`_points_in_box`),
+    on up to :data:`_THREADS` threads.
+    """
+    origin = np.ascontiguousarray(grid.bounds_min, dtype=np.float64)
+    delta = float(grid.resolution)
+    first = np.asarray(first, dtype=np.int64)
+    last = np.asarray(last, dtype=np.int64)
+    if _ball_visits(grid, len(points), gamma) <= _CELL_COST * float(np.prod(last - first + 1)):
+        ordered = _in_memory_order(grid, points)
+        step = max(1, int(_STAMP_CHUNK // _ball_visits(grid, 1, gamma)))
+        for begin in range(0, len(ordered), step):
+            if checkpoint is not None:
+                checkpoint()
+            _stamp_points_in(blocked, _ZERO_BASE, origin, delta, ordered,
+                             np.arange(begin, min(begin + step, len(ordered)), dtype=np.int64),
+                             gamma)
+        return
+    bins = bin_points(points, origin, delta, gamma)
+    shape = np.asarray(grid.shape, dtype=np.int64)
+    start, items = bucket(bins, shape, _DENSE_BOX)
+    tasks = []
+    for box in np.flatnonzero(np.diff(start)):
+        corner = np.asarray(np.unravel_index(box, tuple(-(-shape // _DENSE_BOX))),
+                            dtype=np.int64) * _DENSE_BOX
+        lo = np.maximum(corner, first)
+        hi = np.minimum(corner + _DENSE_BOX - 1, last)
+        if np.all(lo <= hi):
+            tasks.append((lo, hi, items[start[box]:start[box + 1]]))
+
+    def run(task) -> None:
+        _points_in_box(blocked, _ZERO_BASE, grid, bins, task[2], task[0], task[1], gamma)
+
+    _run_tasks(tasks, run, checkpoint, min(_THREADS, _cpu_count(), len(tasks)))
+
+
+def _points_in_box(block: np.ndarray, base: np.ndarray, grid: VoxelGrid, bins: CellBins,
+                   items: np.ndarray, lo: np.ndarray, hi: np.ndarray, gamma: float) -> None:
+    """Block the nodes of the box [lo, hi] within gamma of ``bins.points[items]`` (every point
+    whose cell lies within the halo of the box), on the window ``block`` of the grid from node
+    ``base`` on, by the cheapest exact pass, costs counted in compiled visits: stamping each
+    point's ball, the distance transform of the cells
+    (:func:`~uav_global_planner.core.dense_inflation.mark_box`: :data:`_CELL_COST` a cell,
+    and it gives up when its shell would cost more than the others), or a nearest-point query
+    of each node (:data:`_VISITS_PER_NODE_COMPILED` a node).
+    """
+    origin = np.ascontiguousarray(grid.bounds_min, dtype=np.float64)
+    delta = float(grid.resolution)
+    extent = hi - lo + 1
+    nodes = float(np.prod(extent))
+    stamp = len(items) * min(_ball_visits(grid, 1, gamma), nodes)
+    query = _VISITS_PER_NODE_COMPILED * nodes
+    cells = transform_cost(extent, bins.halo)
+    transform = _CELL_COST * cells
+    if bins.boxes_allowed and cells <= _MAX_TRANSFORM_CELLS and transform < min(stamp, query):
+        if mark_box(block, base, bins, items, lo, hi, origin, delta, gamma,
+                    min(stamp, query) - transform) >= 0:
             return
-        if _ball_visits(grid, len(points), gamma) > _VISITS_PER_NODE_COMPILED * grid.size:
-            _mark_by_nearest_point(grid, points, gamma, blocked)
-        else:
-            _stamp_points(blocked, origin, delta, _in_memory_order(grid, points), gamma)
+    window = block[tuple(slice(int(a), int(b) + 1) for a, b in zip(lo - base, hi - base + 1))]
+    part = window if window.flags.c_contiguous else np.zeros(window.shape, dtype=bool)
+    if stamp <= query:
+        _stamp_points_in(part, lo, origin, delta, bins.points, items, gamma)
+    else:
+        _mark_by_nearest_point_in(grid, bins.points[items], gamma, part, lo)
+    if part is not window:
+        window |= part
 
 
 def _in_memory_order(grid: VoxelGrid, points: np.ndarray) -> np.ndarray:
@@ -842,7 +1009,7 @@ def _node_block(grid: VoxelGrid, lo: np.ndarray, hi: np.ndarray):
 
 
 def _mark_vectorised(grid: VoxelGrid, obstacles: ObstacleSet, gamma: float,
-                     blocked: np.ndarray) -> None:
+                     blocked: np.ndarray, checkpoint: Checkpoint = None) -> None:
     """Every obstacle's nodes within gamma, by numpy passes over sub-blocks, in place."""
     _mark_zones(grid, obstacles, gamma, blocked)
     for center, radius in zip(obstacles.sphere_centers, obstacles.sphere_radii):
@@ -858,28 +1025,40 @@ def _mark_vectorised(grid: VoxelGrid, obstacles: ObstacleSet, gamma: float,
             slices, positions = block
             blocked[slices] |= box_distance(positions, lo[None, :], hi[None, :]) <= gamma
     if len(obstacles.points):
-        _mark_near_points(grid, _relevant_points(grid, obstacles.points, gamma), gamma, blocked)
+        if checkpoint is not None:
+            checkpoint()
+        _mark_near_points(grid, _relevant_points(grid, obstacles.points, gamma), gamma, blocked,
+                          checkpoint)
 
 
 def _mark_near_points(grid: VoxelGrid, points: np.ndarray, gamma: float,
-                      blocked: np.ndarray) -> None:
+                      blocked: np.ndarray, checkpoint: Checkpoint = None) -> None:
     """Block every node within gamma of any of ``points``, exactly, in place, vectorised.
 
     Each point visits the cube of nodes within gamma / delta cells of it, in chunks of bounded
-    memory; when the cubes hold many more nodes than the grid, every node asks a KD-tree of the
-    points for its nearest one instead.
+    memory; when the cubes hold many more nodes than the grid, the distance transform of the
+    cells decides instead (:func:`~uav_global_planner.core.dense_inflation.mark_vectorised`),
+    or, when its halo would dwarf the grid, every node asks a KD-tree of the points for its
+    nearest one.
     """
     if len(points) == 0:
         return
     reach = int(np.ceil(gamma / grid.resolution)) + 1
     if len(points) * (2 * reach + 1) ** 3 > _VISITS_PER_NODE_VECTORISED * grid.size:
-        _mark_by_nearest_point(grid, points, gamma, blocked)
+        if transform_cost(grid.shape, halo_cells(gamma, grid.resolution)) <= (
+                _VISITS_PER_NODE_COMPILED / _CELL_COST * grid.size):
+            mark_vectorised(grid.bounds_min, grid.resolution, grid.shape, points, gamma,
+                            blocked, checkpoint)
+        else:
+            _mark_by_nearest_point(grid, points, gamma, blocked, checkpoint)
         return
     steps = np.arange(-reach, reach + 1)
     offsets = np.stack(np.meshgrid(steps, steps, steps, indexing='ij'), axis=-1).reshape(-1, 3)
     shape = np.asarray(grid.shape)
     step = max(1, _PAIR_BUDGET // len(offsets))
     for start in range(0, len(points), step):
+        if checkpoint is not None:
+            checkpoint()
         chunk = points[start:start + step]
         base = np.rint((chunk - grid.bounds_min) / grid.resolution).astype(np.int64)
         candidates = base[:, None, :] + offsets[None, :, :]
@@ -891,7 +1070,7 @@ def _mark_near_points(grid: VoxelGrid, points: np.ndarray, gamma: float,
 
 
 def _mark_by_nearest_point(grid: VoxelGrid, points: np.ndarray, gamma: float,
-                           blocked: np.ndarray) -> None:
+                           blocked: np.ndarray, checkpoint: Checkpoint = None) -> None:
     """Block every node whose nearest point is within gamma, in chunks of nodes, in place.
 
     scipy's KD-tree forms the Euclidean distance with the same formula (differences squared
@@ -902,6 +1081,8 @@ def _mark_by_nearest_point(grid: VoxelGrid, points: np.ndarray, gamma: float,
     # The query prunes beyond the bound (strictly); the test below applies the rule exactly.
     upper = gamma + 1e-9 * (1.0 + gamma)
     for first in range(0, grid.size, _PAIR_BUDGET):
+        if checkpoint is not None:
+            checkpoint()
         number = np.arange(first, min(first + _PAIR_BUDGET, grid.size))
         nearest, _ = tree.query(grid.index_to_world(grid.unravel(number)),
                                 distance_upper_bound=upper)

@@ -64,6 +64,7 @@ from uav_global_planner.core.jit import JIT_ENABLED, njit
 from uav_global_planner.core.obstacles import Box, Obstacle, ObstacleSet, PointSet, Sphere
 from uav_global_planner.core.planner import fallback_margin
 from uav_global_planner.core.sparse_grid import choose_layout, SparseMask
+from uav_global_planner.core.terrain import HeightField
 
 #: Aimed-at cell edge [m]: about the distance cap of the clearance engine's queries (gamma plus
 #: a metre), so a query reads a few cells per axis, and small enough that a local change
@@ -742,7 +743,7 @@ class LiveObstacles(ObstacleSet):
 
     Parameters
     ----------
-    shapes : iterable of Sphere, Box or TableShape
+    shapes : iterable of Sphere, Box, TableShape or HeightField
     layers : sequence of PointCells
         Empty layers are dropped.
 
@@ -941,7 +942,8 @@ def shape_tiles(grid: VoxelGrid, shapes: Iterable[Obstacle], safety_margin: floa
                 geometry: CellGeometry) -> Optional[np.ndarray]:
     """Flat numbers of the tiles with a node within gamma of any of the shapes, ascending.
 
-    None when a shape has no cheap bound (zones, fences): anything may have changed.
+    None when a shape has no cheap bound (zones, fences, height fields): anything may have
+    changed.
     """
     size = geometry.tile_nodes
     gamma = float(safety_margin)
@@ -1032,6 +1034,12 @@ def same_shape(first: Obstacle, second: Obstacle) -> bool:
     if isinstance(first, Box) and isinstance(second, Box):
         return (bool(np.array_equal(first.min, second.min))
                 and bool(np.array_equal(first.max, second.max)))
+    if isinstance(first, HeightField) and isinstance(second, HeightField):
+        return (first is second or (
+            first.side == second.side and first.label == second.label
+            and bool(np.array_equal(first.origin, second.origin))
+            and bool(np.array_equal(first.spacing, second.spacing))
+            and bool(np.array_equal(first.heights, second.heights))))
     return first is second
 
 

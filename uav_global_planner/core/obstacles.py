@@ -1,7 +1,9 @@
 """Obstacle shapes and the exact Euclidean distance to them (paper eq. 9).
 
 Three shapes: spheres (centre, radius), axis-aligned boxes (min and max corners) and point sets
-(occupied points, for example a point cloud or an octomap's occupied-cell centres). Airspace
+(occupied points, for example a point cloud or an octomap's occupied-cell centres). Terrain and
+ground surfaces (:class:`~uav_global_planner.core.terrain.HeightField`, the solid below or above
+a triangulated height field) join as they are, with their own exact distance. Airspace
 zones and fences (:mod:`uav_global_planner.core.airspace`: prisms, cylinders, the outside of an
 inclusion fence) join the same shape table, so every distance query covers them. Distances are
 to the obstacle's surface, 0 inside it, in metres. The same distance functions drive the grid
@@ -22,6 +24,7 @@ from uav_global_planner.core.grid import as_point
 from uav_global_planner.core.jit import njit
 from uav_global_planner.core.spatial_index import (BOX, BRUTE_FORCE_SHAPES, min_gap_all,
                                                    ShapeIndex, SPHERE, TableShape)
+from uav_global_planner.core.terrain import HeightField
 
 # Smallest reach of a shape lattice [m]: caps below it share one lattice.
 _SMALLEST_REACH = 0.25
@@ -103,7 +106,7 @@ class PointSet:
         object.__setattr__(self, 'points', pts)
 
 
-Obstacle = Union[Sphere, Box, PointSet, TableShape]
+Obstacle = Union[Sphere, Box, PointSet, TableShape, HeightField]
 
 
 def _finite_float(value, name: str) -> float:
@@ -176,11 +179,12 @@ class ObstacleSet:
     (:mod:`uav_global_planner.core.spatial_index`), point sets one KD-tree. A query with a
     ``cap`` looks only at what lies within ``cap`` of each query point (fences, which are
     unbounded, are evaluated exactly for every query), so its cost follows the obstacles near
-    the query, not their number.
+    the query, not their number. Height fields (terrain, ground, AGL floors and ceilings) are
+    kept in :attr:`height_fields` and queried each with its own exact, capped distance.
 
     Parameters
     ----------
-    obstacles : iterable of Sphere, Box, PointSet or TableShape
+    obstacles : iterable of Sphere, Box, PointSet, TableShape or HeightField
         Table shapes (:class:`~uav_global_planner.core.spatial_index.TableShape`, for example
         the zones of :mod:`uav_global_planner.core.airspace`) keep their order in
         :attr:`zones`; their rows follow the spheres' and boxes' (:attr:`zone_rows`).
@@ -189,7 +193,7 @@ class ObstacleSet:
     def __init__(self, obstacles: Iterable[Obstacle] = ()) -> None:
         items = tuple(obstacles)
         for number, item in enumerate(items):
-            if not isinstance(item, (Sphere, Box, PointSet, TableShape)):
+            if not isinstance(item, (Sphere, Box, PointSet, TableShape, HeightField)):
                 raise InvalidInputError(
                     f'obstacle {number} has unsupported type {type(item).__name__}')
         self._items = items
@@ -197,6 +201,8 @@ class ObstacleSet:
         boxes = [o for o in items if isinstance(o, Box)]
         clouds = [o.points for o in items if isinstance(o, PointSet)]
         zones = [o for o in items if isinstance(o, TableShape)]
+        #: The height fields (terrain, ground, AGL floors and ceilings), in the order given.
+        self.height_fields = tuple(o for o in items if isinstance(o, HeightField))
         self.sphere_centers = np.array([s.center for s in spheres]).reshape(-1, 3)
         self.sphere_radii = np.array([s.radius for s in spheres], dtype=np.float64)
         self.box_mins = np.array([b.min for b in boxes]).reshape(-1, 3)
@@ -242,7 +248,7 @@ class ObstacleSet:
 
     def is_empty(self) -> bool:
         """True when there is nothing to avoid."""
-        return not (len(self.shape_kind) or len(self.points))
+        return not (len(self.shape_kind) or len(self.points) or self.height_fields)
 
     def distance(self, points, cap: float = math.inf) -> np.ndarray:
         """Euclidean distance from each point to the nearest obstacle [m] (eq. 9).
@@ -276,6 +282,8 @@ class ObstacleSet:
         if self._tree is not None:
             nearest, _ = self._tree.query(flat, distance_upper_bound=cap)
             np.minimum(out, nearest, out=out)
+        for field in self.height_fields:
+            np.minimum(out, field.distance(flat, cap), out=out)
         if capped:
             np.minimum(out, cap, out=out)
         return out.reshape(p.shape[:-1])

@@ -40,6 +40,7 @@ from uav_global_planner.core.sparse_grid import first_free_node
 from uav_global_planner.core.status import PlanStatus
 from uav_global_planner.core.timing import time_parameterize
 from uav_global_planner.core.tracking import tracking_speed_cap
+from uav_global_planner.core.unknown_space import UnknownSpace
 
 # Extra inflation of the fallback grid: a segment between two 26-neighbour nodes lies within
 # delta * sqrt(3) / 2 of one of them and the obstacle distance is 1-Lipschitz, so on a grid
@@ -77,12 +78,15 @@ class _InflatedGrid:
     """A grid and its blocked mask for one safety margin."""
 
     def __init__(self, grid: VoxelGrid, obstacles: ObstacleSet, margin: float,
-                 blocked: Optional[Mask] = None) -> None:
+                 blocked: Optional[Mask] = None,
+                 checkpoint: Optional[Callable[[], None]] = None) -> None:
         started = time.perf_counter()
         self.grid = grid
         self.margin = margin
-        # A mask built elsewhere (a live map, off the planning thread) costs the plan nothing.
-        self.blocked = blocked_mask(grid, obstacles, margin) if blocked is None else blocked
+        # A mask built elsewhere (a live map, off the planning thread) costs the plan nothing;
+        # one built here calls ``checkpoint`` (a plan's budget) between pieces of the build.
+        self.blocked = (blocked_mask(grid, obstacles, margin, checkpoint=checkpoint)
+                        if blocked is None else blocked)
         self.build_time_s = time.perf_counter() - started
         # Reported by the first plan that uses this grid, whether that plan or warm_up() built it.
         self.reported = blocked is not None
@@ -104,6 +108,10 @@ class Planner:
         Settings; validated here.
     obstacles : ObstacleSet
         Obstacles in the planning frame [m].
+    unknown : UnknownSpace, optional
+        Space the map never observed (:mod:`uav_global_planner.core.unknown_space`); with
+        ``config.unknown_space`` occupied its boxes join the obstacles (:attr:`obstacles`).
+        Every plan reports the length of its curve inside it.
 
     Raises
     ------
@@ -112,13 +120,20 @@ class Planner:
     """
 
     def __init__(self, config: PlannerConfig = PlannerConfig(),
-                 obstacles: Optional[ObstacleSet] = None) -> None:
+                 obstacles: Optional[ObstacleSet] = None, *,
+                 unknown: Optional[UnknownSpace] = None) -> None:
         self._config = validate_config(config)
         if obstacles is not None and not isinstance(obstacles, ObstacleSet):
             # Checked here, not at the first plan: there it would escape plan() as an
             # AttributeError.
             raise InvalidInputError('obstacles must be an ObstacleSet')
-        self._obstacles = obstacles if obstacles is not None else ObstacleSet()
+        self._unknown = _checked_unknown(unknown)
+        # The obstacles as given, and with the unknown boxes where they count as solid.
+        self._given = obstacles if obstacles is not None else ObstacleSet()
+        self._obstacles = self._with_unknown(self._given)
+        self._solid_cache: Tuple[Optional[ObstacleSet], Optional[ObstacleSet]] = (None, None)
+        # The grid nodes in unknown space, for the cost policy: (grid, layout, mask).
+        self._unknown_mask: Optional[Tuple[VoxelGrid, str, Mask]] = None
         self._inflated: Optional[_InflatedGrid] = None
         self._fallback: Optional[_InflatedGrid] = None
         # One search workspace (per-node arrays) serves both grids: on large grids a second one
@@ -134,8 +149,49 @@ class Planner:
 
     @property
     def obstacles(self) -> ObstacleSet:
-        """The obstacles in force."""
+        """The obstacles in force (with the unknown boxes when unknown space is occupied)."""
         return self._obstacles
+
+    @property
+    def unknown(self) -> Optional[UnknownSpace]:
+        """The unknown space in force, None when the map says nothing about it."""
+        return self._unknown
+
+    def set_unknown(self, unknown: Optional[UnknownSpace]) -> None:
+        """Replace the unknown space; the grid is re-inflated at the next plan when its boxes
+        are obstacles."""
+        self._unknown = _checked_unknown(unknown)
+        self._recompose()
+
+    def _unknown_is_solid(self, config: Optional[PlannerConfig] = None) -> bool:
+        config = self._config if config is None else config
+        return (config.unknown_space == 'occupied' and self._unknown is not None
+                and not self._unknown.is_empty())
+
+    def _with_unknown(self, obstacles: ObstacleSet) -> ObstacleSet:
+        """``obstacles`` plus the unknown boxes when unknown space is occupied."""
+        if not self._unknown_is_solid():
+            return obstacles
+        assert self._unknown is not None
+        return ObstacleSet([*obstacles.items, *self._unknown.boxes()])
+
+    def _solid(self, obstacles: Optional[ObstacleSet]) -> ObstacleSet:
+        """The planner's obstacles, or ``obstacles`` with the unknown boxes (kept for the
+        last set asked for: building a set of many boxes costs time)."""
+        if obstacles is None or obstacles is self._given:
+            return self._obstacles
+        if not self._unknown_is_solid():
+            return obstacles
+        given, solid = self._solid_cache
+        if given is not obstacles or solid is None:
+            solid = self._with_unknown(obstacles)
+            self._solid_cache = (obstacles, solid)
+        return solid
+
+    def _recompose(self) -> None:
+        self._obstacles = self._with_unknown(self._given)
+        self._solid_cache = (None, None)
+        self._invalidate()
 
     @property
     def grid(self) -> VoxelGrid:
@@ -160,14 +216,17 @@ class Planner:
         if config.grid_key() != self._config.grid_key() or (
                 config.max_voxels != self._config.max_voxels):
             self._invalidate()
+        solid = self._unknown_is_solid()
         self._config = config
+        if self._unknown_is_solid() != solid:
+            self._recompose()
 
     def set_obstacles(self, obstacles: ObstacleSet) -> None:
         """Replace the obstacles; the grid is re-inflated at the next plan."""
         if not isinstance(obstacles, ObstacleSet):
             raise InvalidInputError('obstacles must be an ObstacleSet')
-        self._obstacles = obstacles
-        self._invalidate()
+        self._given = obstacles
+        self._recompose()
 
     def set_map(self, obstacles: ObstacleSet, blocked: Optional[Mask],
                 grid_key: Optional[tuple] = None,
@@ -191,11 +250,11 @@ class Planner:
         -------
         bool
             True when the mask is used; False when it does not fit the settings in force (or
-            is None), and the grid is then inflated at the next plan, as after
-            :meth:`set_obstacles`.
+            is None, or the unknown boxes are obstacles, which the mask does not cover), and
+            the grid is then inflated at the next plan, as after :meth:`set_obstacles`.
         """
         self.set_obstacles(obstacles)
-        if blocked is None or grid_key != self._config.grid_key():
+        if blocked is None or grid_key != self._config.grid_key() or self._unknown_is_solid():
             return False
         grid = self._make_grid()
         if tuple(blocked.shape) != tuple(grid.shape) or blocked.dtype != np.bool_:
@@ -207,9 +266,24 @@ class Planner:
                                            fallback)
         return True
 
-    def warm_up(self) -> None:
-        """Compile the search kernels and build the grid, so the first real plan is fast."""
-        inflated = self._primary()
+    def warm_up(self, budget: Optional[PlanBudget] = None) -> None:
+        """Compile the search kernels and build the grid, so the first real plan is fast.
+
+        Parameters
+        ----------
+        budget : PlanBudget, optional
+            The request this prepares (passed on to :meth:`plan`): the grid build counts
+            against it, as its stage ``grid build``.
+
+        Raises
+        ------
+        PlanningTimeoutError, PlanningCancelledError
+            When ``budget`` runs out (or is cancelled) during the build; the grid is then
+            not kept, and a :meth:`plan` with the same budget reports the timeout.
+        """
+        if budget is not None:
+            budget.enter(PlanStage.GRID)
+        inflated = self._primary(None if budget is None else budget.check)
         first = first_free_node(inflated.blocked)  # without a copy of the grid
         if first is None:
             return
@@ -225,9 +299,10 @@ class Planner:
         positions : array_like, shape (M, 3)
             Polyline vertices [m].
         obstacles : ObstacleSet, optional
-            Checked against these instead of the planner's.
+            Checked against these instead of the planner's (with the unknown boxes when
+            unknown space is occupied).
         """
-        obstacles = self._obstacles if obstacles is None else obstacles
+        obstacles = self._solid(obstacles)
         return certify_polyline(obstacles, positions, self._config.planning_margin,
                                 self._config.resolution).clear
 
@@ -244,13 +319,14 @@ class Planner:
             checked (the stretch already flown no longer matters). The whole curve when None.
         obstacles : ObstacleSet, optional
             Checked against these instead of the planner's (for example a map that arrived
-            while the plan was computed).
+            while the plan was computed), with the unknown boxes when unknown space is
+            occupied.
 
         Returns
         -------
         ClearanceVerdict
         """
-        obstacles = self._obstacles if obstacles is None else obstacles
+        obstacles = self._solid(obstacles)
         return certify_plan(result, obstacles, self._config.planning_margin,
                             self._config.resolution, position)
 
@@ -258,7 +334,7 @@ class Planner:
              cancel: Optional[Callable[[], bool]] = None,
              progress: Optional[ProgressCallback] = None, start_velocity=None,
              start_acceleration=None, start_yaw: Optional[float] = None,
-             start_path=None) -> PlanResult:
+             start_path=None, budget: Optional[PlanBudget] = None) -> PlanResult:
         """Plan from ``start`` to ``goal``, through ``via`` in order.
 
         Parameters
@@ -288,6 +364,10 @@ class Planner:
             Where the plan in force goes on from ``start`` [m] (its reference positions ahead):
             with a moving start the new curve follows it for a braking distance first, so the
             vehicle's speed fits the curve it flies next.
+        budget : PlanBudget, optional
+            A budget that began earlier, for a request that built the grid first
+            (:meth:`warm_up` with it); it replaces ``cancel``, ``progress`` and
+            ``config.max_planning_time``.
 
         Returns
         -------
@@ -297,7 +377,8 @@ class Planner:
             ``config.max_planning_time``; running out gives ``timeout`` naming the stage.
         """
         config = self._config
-        budget = PlanBudget(config.max_planning_time, cancel, progress)
+        if budget is None:
+            budget = PlanBudget(config.max_planning_time, cancel, progress)
         name = config.algorithm if algorithm is None else algorithm
         start_point = _point_or_nan(start)
         goal_point = _point_or_nan(goal)
@@ -313,7 +394,13 @@ class Planner:
                         start_acceleration=handover.acceleration)
             return self._plan(start, goal, via, name, base, budget, legs, handover)
         except PlanningError as error:
-            return PlanResult(status=error.status, message=str(error), **base,
+            message = str(error)
+            if isinstance(error, NoValidPathError) and self._unknown_is_solid():
+                assert self._unknown is not None
+                message += (f'; {self._unknown.volume_m3:.1f} m^3 the map never observed '
+                            'count as an obstacle (unknown_space occupied): unknown_space cost '
+                            'or free may find a path through it')
+            return PlanResult(status=error.status, message=message, **base,
                               expanded_nodes=error.expanded_nodes
                               + sum(leg.expanded_nodes for leg in legs),
                               legs=tuple(legs), failed_leg=getattr(error, 'leg', -1),
@@ -329,7 +416,7 @@ class Planner:
         goal_point = as_point(goal, 'goal')
         via_points = _via_points(via)
         budget.enter(PlanStage.GRID)
-        inflated = self._primary()
+        inflated = self._primary(budget.check)
         build_time = inflated.unreported_build_time()
         budget.check()
         stops = np.vstack([start_point[None, :], via_points, goal_point[None, :]])
@@ -348,7 +435,7 @@ class Planner:
             # The grid path hugs the inflated obstacles so closely that no curve through it keeps
             # gamma: plan once more on the conservative grid, whose polyline provably does.
             budget.enter(PlanStage.GRID)
-            fallback = self._conservative()
+            fallback = self._conservative(budget.check)
             budget.check()
             try:
                 nodes = self._check_stops(fallback, stops)
@@ -384,11 +471,14 @@ class Planner:
         path = np.vstack([paths[0]] + [p[1:] for p in paths[1:]])
         legs[:] = _timed_legs(legs, trajectory, stops)
         repaired = len(smoothed.repaired_stretches)
+        unknown_m = (0.0 if self._unknown is None
+                     else self._unknown.length_inside(trajectory.positions))
         message = (f'path of {polyline_length(path):.3f} m over {len(path)} nodes, '
                    f'{expanded} nodes expanded; smoothed {smoothed.length_m:.3f} m, '
                    f'min clearance {smoothed.min_clearance_m:.3f} m'
                    + (f', {len(via_points)} via-point(s)' if len(via_points) else '')
-                   + (f', {repaired} stretch(es) repaired' if repaired else ''))
+                   + (f', {repaired} stretch(es) repaired' if repaired else '')
+                   + (f', {unknown_m:.3f} m through unknown space' if unknown_m > 0.0 else ''))
         return PlanResult(
             status=PlanStatus.OK, message=message, **base, path=path,
             path_length_m=polyline_length(path), cost=sum(leg.cost for leg in legs),
@@ -401,6 +491,7 @@ class Planner:
             smoothing_time_s=smoothing_time, via=via_points, legs=tuple(legs),
             curve=smoothed.curve, total_time_s=budget.elapsed_s,
             handover_velocity_error=velocity_error, handover_accel_error=accel_error,
+            unknown_length_m=unknown_m,
             energy=estimate_energy(trajectory, VehicleModel(config.vehicle_mass,
                                                             config.hover_power)))
 
@@ -453,7 +544,29 @@ class Planner:
                                       weight=config.search_weight,
                                       climb_weight=config.climb_weight,
                                       descent_weight=config.descent_weight,
-                                      checkpoint=None if budget is None else budget.check)
+                                      checkpoint=None if budget is None else budget.check,
+                                      unknown=self._unknown_nodes(inflated),
+                                      unknown_cost=config.unknown_cost)
+
+    def _unknown_is_charged(self) -> bool:
+        """True when unknown space costs unknown_cost per metre (policy cost, some unknown
+        space, a rate above 0)."""
+        return (self._config.unknown_space == 'cost' and self._config.unknown_cost > 0.0
+                and self._unknown is not None and not self._unknown.is_empty())
+
+    def _unknown_nodes(self, inflated: _InflatedGrid) -> Optional[Mask]:
+        """The grid nodes in unknown space (in the layout of ``inflated.blocked``) when the
+        search charges for them, else None; built once per grid."""
+        if not self._unknown_is_charged():
+            return None
+        assert self._unknown is not None
+        layout = 'dense' if isinstance(inflated.blocked, np.ndarray) else 'sparse'
+        cached = self._unknown_mask
+        if cached is None or cached[0] is not inflated.grid or cached[1] != layout:
+            # Distance 0: the nodes inside a box or on its faces.
+            mask = blocked_mask(inflated.grid, self._unknown.obstacles, 0.0, layout=layout)
+            cached = self._unknown_mask = (inflated.grid, layout, mask)
+        return cached[2]
 
     def _tracking_cap(self, smoothed: SmoothedPath) -> Optional[np.ndarray]:
         """Speed cap at each sample that keeps the predicted tracking error in the room
@@ -470,13 +583,26 @@ class Planner:
         tangent, curvature, lead_in, guide = (
             (None, None, None, None) if handover is None
             else handover.curve_start(MotionLimits.from_config(config)))
-        return smooth_path(waypoints, self._obstacles, config.planning_margin, config.resolution,
-                           shortcut=config.shortcut, mode=config.smoothing,
-                           sample_spacing=config.sample_spacing, index_step=config.index_step,
-                           bounds=(grid.bounds_min, grid.bounds_max), keep=keep,
-                           start_tangent=tangent, start_curvature=curvature,
-                           start_lead_in=lead_in, start_lead_in_path=guide,
-                           checkpoint=None if budget is None else budget.check)
+
+        def smooth(shortcut: bool) -> SmoothedPath:
+            return smooth_path(waypoints, self._obstacles, config.planning_margin,
+                               config.resolution, shortcut=shortcut, mode=config.smoothing,
+                               sample_spacing=config.sample_spacing,
+                               index_step=config.index_step,
+                               bounds=(grid.bounds_min, grid.bounds_max), keep=keep,
+                               start_tangent=tangent, start_curvature=curvature,
+                               start_lead_in=lead_in, start_lead_in_path=guide,
+                               checkpoint=None if budget is None else budget.check)
+
+        smoothed = smooth(config.shortcut)
+        if config.shortcut and self._unknown_is_charged():
+            # Shortcuts see obstacles, not the cost of unknown space: when they fly more of it
+            # than the searched path (by more than a cell), the curve follows the path's nodes.
+            assert self._unknown is not None
+            if self._unknown.length_inside(smoothed.positions) > (
+                    self._unknown.length_inside(waypoints) + config.resolution):
+                smoothed = smooth(False)
+        return smoothed
 
     def _check_endpoints(self, inflated: _InflatedGrid, start: np.ndarray, goal: np.ndarray):
         grid = inflated.grid
@@ -489,6 +615,7 @@ class Planner:
             raise GoalOutsideMapError(
                 f'goal {goal.tolist()} is outside the bounds {grid.bounds_min.tolist()} .. '
                 f'{grid.bounds_max.tolist()}')
+        self._check_unknown(start, goal)
         for which, point in (('start', start), ('goal', goal)):  # names the fence or zone
             check_endpoint(self._obstacles, point, which, gamma,
                            _ENDPOINT_TOLERANCE * self._config.resolution)
@@ -512,19 +639,44 @@ class Planner:
                 f'gamma is {gamma} m')
         return start_node, goal_node
 
+    def _check_unknown(self, start: np.ndarray, goal: np.ndarray) -> None:
+        """Refuse an endpoint in unknown space, or within gamma of it, when it is occupied."""
+        if not self._unknown_is_solid():
+            return
+        assert self._unknown is not None
+        gamma = self._config.planning_margin
+        room = _ENDPOINT_TOLERANCE * self._config.resolution
+        distances = self._unknown.distance(np.stack([start, goal]), cap=gamma + 1.0)
+        for which, point, distance, error in (
+                ('start', start, float(distances[0]), StartOccupiedError),
+                ('goal', goal, float(distances[1]), GoalOccupiedError)):
+            if distance - room > gamma:
+                continue
+            where = ('in unknown space' if distance <= 0.0 else
+                     f'{distance:.3f} m from unknown space, within the safety margin '
+                     f'({gamma} m)')
+            raise error(
+                f'{which} {point.tolist()} is {where}: space the map never observed '
+                f'({self._unknown.source or "the map"}), an obstacle with unknown_space '
+                'occupied (the default); observe it first, move the ' + which
+                + ', or set unknown_space to free to fly through unobserved space')
+
     def _node_clearance(self, grid: VoxelGrid, node: np.ndarray) -> float:
         return float(self._obstacles.distance(grid.index_to_world(node)))
 
-    def _primary(self) -> _InflatedGrid:
+    def _primary(self, checkpoint: Optional[Callable[[], None]] = None) -> _InflatedGrid:
+        """The grid and its mask, built on first use; ``checkpoint`` as for
+        :func:`~uav_global_planner.core.inflation.blocked_mask` (what it raises leaves no
+        grid)."""
         if self._inflated is None:
             self._inflated = _InflatedGrid(self._make_grid(), self._obstacles,
-                                           self._config.planning_margin)
+                                           self._config.planning_margin, checkpoint=checkpoint)
         return self._inflated
 
-    def _conservative(self) -> _InflatedGrid:
+    def _conservative(self, checkpoint: Optional[Callable[[], None]] = None) -> _InflatedGrid:
         if self._fallback is None:
-            self._fallback = _InflatedGrid(self._primary().grid, self._obstacles,
-                                           fallback_margin(self._config))
+            self._fallback = _InflatedGrid(self._primary(checkpoint).grid, self._obstacles,
+                                           fallback_margin(self._config), checkpoint=checkpoint)
             self.fallback_builds += 1
         return self._fallback
 
@@ -536,6 +688,13 @@ class Planner:
     def _invalidate(self) -> None:
         self._inflated = None
         self._fallback = None
+        self._unknown_mask = None
+
+
+def _checked_unknown(unknown: Optional[UnknownSpace]) -> Optional[UnknownSpace]:
+    if unknown is not None and not isinstance(unknown, UnknownSpace):
+        raise InvalidInputError('unknown must be an UnknownSpace or None')
+    return unknown
 
 
 def fallback_margin(config: PlannerConfig) -> float:

@@ -308,6 +308,10 @@ class PlanResult:
     handover_velocity_error, handover_accel_error : float
         Norm of the difference between that state and the reference at time 0 [m/s],
         [m/s^2]; 0 when the plan continues it exactly.
+    unknown_length_m : float
+        Length of the smoothed curve (the polyline through its samples) inside space the map
+        never observed [m] (:mod:`uav_global_planner.core.unknown_space`); 0 when the map
+        declares none or the curve avoids it, NaN on failure. A report, not a safety check.
     """
 
     status: PlanStatus
@@ -343,6 +347,7 @@ class PlanResult:
     start_acceleration: np.ndarray = field(default_factory=lambda: np.zeros(3))
     handover_velocity_error: float = 0.0
     handover_accel_error: float = 0.0
+    unknown_length_m: float = float('nan')
 
     @property
     def ok(self) -> bool:

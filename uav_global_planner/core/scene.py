@@ -22,19 +22,26 @@ Format (every key below is required except ``description``, ``frame_id`` and ``o
         - {type: cylinder, center: [x, y], radius: 30.0, floor: 0.0, ceiling: 200.0}
         - {type: box, min: [x, y, z], max: [x, y, z]}
     cost: {climb_weight: 1.0, descent_weight: 1.0}   # optional, the energy-aware step cost
+    known_volume: [{min: [x, y, z], max: [x, y, z]}]  # optional: outside them is unknown
+    unknown_space: occupied  # optional: occupied (default), free or cost; core/unknown_space.py
     vehicle: {mass: 1.5, hover_power: 180.0}         # optional [kg], [W], see core/energy.py
     planner: {smoothing: chord, max_speed_horizontal: 2.0}   # optional, any key listed below
+    ground: floor            # optional: none (default), floor or a height [m]; core/ground.py
+    terrain: {file: dem.tif}  # optional DEM (.tif, .asc; .npy with origin, spacing); core/dem.py
+    min_agl: 10.0            # optional height band above the ground [m], 0 = off
+    max_agl: 120.0
 
 ``max_voxels`` (an integer) raises or lowers the grid's node cap. Which settings a scene may
 give, and where, is the ``scene_key`` of each entry of the settings table
 (:data:`uav_global_planner.core.settings.PLANNER_SETTINGS`): the keys above, and under
 ``planner:`` search_weight, max_expansions, max_planning_time, shortcut, smoothing,
-sample_spacing, index_step and the four speed and acceleration limits. Each is checked by the
-table, so a scene accepts exactly what the node and ``uav-plan`` accept. A ``points_file`` path is
-resolved against the scene file's folder; its formats and margins are those of
-:mod:`uav_global_planner.core.mapfiles`. A map's margin (OctoMap cells, downsampling: every
-occupied location lies within it of a point) is added to the safety margin, so the planner keeps
-gamma from what the file describes; :attr:`Scene.map_margin_m` says how much was added.
+sample_spacing, index_step, start_tolerance and the four speed and acceleration limits. Each is
+checked by the table, so a scene accepts exactly what the node and ``uav-plan`` accept. A
+``points_file`` path is resolved against the scene file's folder; its formats and margins
+are those of :mod:`uav_global_planner.core.mapfiles`. A map's margin (OctoMap cells,
+downsampling: every occupied location lies within it of a point) is added to the safety margin,
+so the planner keeps gamma from what the file describes; :attr:`Scene.map_margin_m` says how
+much was added.
 
 Unknown keys or obstacle types, missing keys and wrong types raise
 :class:`~uav_global_planner.core.errors.InvalidInputError` whose message starts with the key path,
@@ -52,16 +59,20 @@ import yaml
 
 from uav_global_planner.core.airspace import Airspace, parse_geofence
 from uav_global_planner.core.config import PlannerConfig, validate_config
+from uav_global_planner.core.dem import load_dem, parse_terrain
 from uav_global_planner.core.energy import VehicleModel
 from uav_global_planner.core.errors import InvalidInputError
 from uav_global_planner.core.geodesy import GeodeticOrigin
-from uav_global_planner.core.mapfiles import load_map_points
+from uav_global_planner.core.ground import ground_obstacles
+from uav_global_planner.core.mapfiles import load_map_points, MapReport
 from uav_global_planner.core.obstacles import Box, Obstacle, ObstacleSet, PointSet, Sphere
 from uav_global_planner.core.settings import planner_settings, Setting
+from uav_global_planner.core.terrain import HeightField
+from uav_global_planner.core.unknown_space import scene_unknown, UnknownSpace
 
 # Top-level keys that are scene data, not settings; the settings' keys come from the table.
 _DATA_KEYS = ('description', 'frame_id', 'start', 'goal', 'obstacles', 'geodetic_origin', 'via',
-              'geofence')
+              'geofence', 'terrain', 'known_volume')
 _OBSTACLE_KEYS = {'sphere': ('center', 'radius'), 'box': ('min', 'max'), 'points': ('points',),
                   'points_file': ('path',)}
 _OPTIONAL_OBSTACLE_KEYS = {'points_file': ('downsample',)}
@@ -101,6 +112,19 @@ class Scene:
         The ``geofence`` key's fences and zones, already in ``obstacles``.
     vehicle : VehicleModel
         The ``vehicle`` key's mass and hover power, for energy estimates.
+    terrain : HeightField or None
+        The ``terrain`` key's DEM over the bounds (:mod:`uav_global_planner.core.dem`).
+    ground : tuple of HeightField
+        The ground (the terrain, or the flat ground of ``config.ground``), the AGL floor and
+        the AGL ceiling (:func:`uav_global_planner.core.ground.ground_obstacles`), already in
+        ``obstacles``.
+    map_reports : tuple of MapReport
+        What each map file (``points_file`` obstacles, in order) read, dropped and kept.
+    unknown : UnknownSpace or None
+        Space the scene's OctoMap files never observed and space outside its
+        ``known_volume`` boxes (:mod:`uav_global_planner.core.unknown_space`), within the
+        bounds; None when it declares neither. What the planner does with it is
+        ``config.unknown_space``.
     """
 
     name: str
@@ -115,6 +139,10 @@ class Scene:
     via: np.ndarray = field(default_factory=lambda: np.empty((0, 3)))
     airspace: Airspace = field(default_factory=Airspace)
     vehicle: VehicleModel = field(default_factory=VehicleModel)
+    terrain: Optional[HeightField] = None
+    ground: Tuple[HeightField, ...] = ()
+    map_reports: Tuple[MapReport, ...] = ()
+    unknown: Optional[UnknownSpace] = None
 
 
 def _fail(path: str, reason: str) -> InvalidInputError:
@@ -151,8 +179,11 @@ def _require(mapping: dict, key: str, path: str) -> Any:
     return mapping[key]
 
 
-def _obstacle(entry: Any, path: str, folder: Optional[Path] = None) -> Tuple[Obstacle, float]:
-    """One obstacle and its margin [m] (non-zero only for map files, see mapfiles)."""
+def _obstacle(entry: Any, path: str, folder: Optional[Path] = None,
+              config: Optional[PlannerConfig] = None,
+              reports: Optional[List[MapReport]] = None) -> Tuple[Obstacle, float]:
+    """One obstacle and its margin [m] (non-zero only for map files, see mapfiles); a map
+    file is checked against ``config`` and its report appended to ``reports``."""
     if not isinstance(entry, dict):
         raise _fail(path, f'must be a mapping with a type, got {type(entry).__name__}')
     kind = _require(entry, 'type', path)
@@ -162,7 +193,7 @@ def _obstacle(entry: Any, path: str, folder: Optional[Path] = None) -> Tuple[Obs
     _mapping(entry, path, {'type', *_OBSTACLE_KEYS[kind], *_OPTIONAL_OBSTACLE_KEYS.get(kind, ())})
     values = {key: _require(entry, key, path) for key in _OBSTACLE_KEYS[kind]}
     if kind == 'points_file':
-        return _points_file(entry, values['path'], path, folder)
+        return _points_file(entry, values['path'], path, folder, config, reports)
     if kind == 'sphere':
         center = _vector(values['center'], f'{path}.center')
         radius = _number(values['radius'], f'{path}.radius')
@@ -183,8 +214,9 @@ def _obstacle(entry: Any, path: str, folder: Optional[Path] = None) -> Tuple[Obs
                     .reshape(-1, 3)), 0.0
 
 
-def _points_file(entry: dict, file: Any, path: str,
-                 folder: Optional[Path]) -> Tuple[PointSet, float]:
+def _points_file(entry: dict, file: Any, path: str, folder: Optional[Path],
+                 config: Optional[PlannerConfig] = None,
+                 reports: Optional[List[MapReport]] = None) -> Tuple[PointSet, float]:
     if not isinstance(file, str) or not file.strip():
         raise _fail(f'{path}.path', f'must be a file name, got {file!r}')
     downsample = entry.get('downsample')
@@ -196,9 +228,17 @@ def _points_file(entry: dict, file: Any, path: str,
     if not location.is_absolute() and folder is not None:
         location = folder / location
     try:
-        loaded = load_map_points(location, downsample)
+        if config is None:
+            loaded = load_map_points(location, downsample)
+        else:
+            # gamma as asked (the map margins are added after the files are read).
+            loaded = load_map_points(location, downsample,
+                                     bounds=(config.bounds_min, config.bounds_max),
+                                     reach=config.safety_margin, resolution=config.resolution)
     except InvalidInputError as error:
         raise type(error)(f'{path}.path: {error}') from None
+    if reports is not None:
+        reports.extend(loaded.reports)
     return loaded.obstacle(), loaded.margin_m
 
 
@@ -250,7 +290,8 @@ def _required_top_keys() -> List[str]:
 
 def parse_scene(data: Any, name: str = 'scene', base: PlannerConfig = PlannerConfig(),
                 folder: Optional[Path] = None,
-                overrides: Optional[Mapping[str, Any]] = None) -> Scene:
+                overrides: Optional[Mapping[str, Any]] = None,
+                terrain_file: Optional[Union[str, Path]] = None) -> Scene:
     """Validate a scene already loaded from YAML.
 
     Parameters
@@ -266,6 +307,9 @@ def parse_scene(data: Any, name: str = 'scene', base: PlannerConfig = PlannerCon
     overrides : mapping of str to Any, optional
         :class:`PlannerConfig` fields that replace the scene's own (command-line options), applied
         before validation, so an override can lift a cap the scene's values exceed.
+    terrain_file : str or Path, optional
+        A DEM (GeoTIFF or ``.asc``, :mod:`uav_global_planner.core.dem`) that replaces the
+        scene's ``terrain`` key (``uav-plan --terrain``); refusals start with ``--terrain``.
 
     Raises
     ------
@@ -298,7 +342,9 @@ def parse_scene(data: Any, name: str = 'scene', base: PlannerConfig = PlannerCon
     if not isinstance(via_entries, list):
         raise _fail('via', f'must be a list of [x, y, z], got {type(via_entries).__name__}')
     via = np.array([_vector(v, f'via[{n}]') for n, v in enumerate(via_entries)]).reshape(-1, 3)
-    parsed = [_obstacle(e, f'obstacles[{n}]', folder) for n, e in enumerate(entries)]
+    reports: List[MapReport] = []
+    parsed = [_obstacle(e, f'obstacles[{n}]', folder, config, reports)
+              for n, e in enumerate(entries)]
     obstacles: List[Obstacle] = [obstacle for obstacle, _ in parsed]
     margin = max((m for _, m in parsed), default=0.0)
     if margin > 0.0:
@@ -311,15 +357,75 @@ def parse_scene(data: Any, name: str = 'scene', base: PlannerConfig = PlannerCon
         origin = GeodeticOrigin(*(_number(_require(keys, key, 'geodetic_origin'),
                                           f'geodetic_origin.{key}')
                                   for key in ('lat', 'lon', 'alt_amsl')))
-    return Scene(name=name, description=description, frame_id=frame_id, config=config,
-                 start=start, goal=goal,
-                 obstacles=ObstacleSet(obstacles + list(airspace.shapes())), map_margin_m=margin,
-                 geodetic_origin=origin, via=via, airspace=airspace, vehicle=vehicle)
+    terrain = None
+    if terrain_file is not None:
+        terrain = _terrain({'file': str(terrain_file)}, config, origin, None, '--terrain')
+    elif top.get('terrain') is not None:
+        terrain = _terrain(top['terrain'], config, origin, folder)
+    scene = Scene(name=name, description=description, frame_id=frame_id, config=config,
+                  start=start, goal=goal,
+                  obstacles=ObstacleSet(obstacles + list(airspace.shapes())),
+                  map_margin_m=margin, geodetic_origin=origin, via=via, airspace=airspace,
+                  vehicle=vehicle, map_reports=tuple(reports))
+    scene = replace(scene, unknown=_unknown_space(top, entries, folder, config))
+    return with_ground(scene, terrain)
+
+
+def _unknown_space(top: dict, entries: list, folder: Optional[Path],
+                   config: PlannerConfig) -> Optional[UnknownSpace]:
+    """The scene's unknown space: outside ``known_volume``, and the OctoMap files' unknown
+    cells (the entries are valid obstacles already)."""
+    files = []
+    for entry in entries:
+        if entry.get('type') == 'points_file':
+            location = Path(entry['path']).expanduser()
+            files.append(location if location.is_absolute() or folder is None
+                         else folder / location)
+    return scene_unknown(top.get('known_volume'), files, config.bounds_min, config.bounds_max)
+
+
+def _terrain(value: Any, config: PlannerConfig, origin: Optional[GeodeticOrigin],
+             folder: Optional[Path], path: str = 'terrain') -> HeightField:
+    """The ``terrain`` key's DEM as a height field over the bounds' x/y extent."""
+    source = parse_terrain(value, folder, path)
+    try:
+        return load_dem(source, config.bounds_min[:2], config.bounds_max[:2], origin)
+    except InvalidInputError as error:
+        where = f'{path}.file' if path == 'terrain' else path
+        raise type(error)(f'{where}: {error}') from None
+
+
+def with_ground(scene: Scene, terrain: Optional[HeightField] = None) -> Scene:
+    """``scene`` with its ground, AGL floor and AGL ceiling made again from its config and
+    ``terrain`` (:func:`uav_global_planner.core.ground.ground_obstacles`), replacing its own:
+    after a change of the planning margin or of the terrain.
+
+    Parameters
+    ----------
+    scene : Scene
+    terrain : HeightField, optional
+        The terrain (pass ``scene.terrain`` to keep the scene's own); None for none.
+
+    Raises
+    ------
+    InvalidInputError
+        For a height band without a ground, or a flat ground above the bounds.
+    """
+    own = {id(shape) for shape in scene.ground}
+    others = [item for item in scene.obstacles.items if id(item) not in own]
+    config = scene.config
+    shapes = ground_obstacles(config, terrain)
+    if not own and not shapes:
+        return replace(scene, terrain=terrain)
+    return replace(scene, obstacles=ObstacleSet(others + list(shapes)), terrain=terrain,
+                   ground=shapes)
 
 
 def load_scene(path: Union[str, Path], base: PlannerConfig = PlannerConfig(),
-               overrides: Optional[Mapping[str, Any]] = None) -> Scene:
-    """Read and validate a scene file (``base`` and ``overrides`` as in :func:`parse_scene`).
+               overrides: Optional[Mapping[str, Any]] = None,
+               terrain_file: Optional[Union[str, Path]] = None) -> Scene:
+    """Read and validate a scene file (``base``, ``overrides`` and ``terrain_file`` as in
+    :func:`parse_scene`).
 
     Raises
     ------
@@ -340,7 +446,7 @@ def load_scene(path: Union[str, Path], base: PlannerConfig = PlannerConfig(),
     except yaml.YAMLError as error:
         raise InvalidInputError(f'{file}: not valid YAML ({error})') from None
     return parse_scene(data, name=file.stem, base=base, folder=file.resolve().parent,
-                       overrides=overrides)
+                       overrides=overrides, terrain_file=terrain_file)
 
 
 def shipped_config_dirs() -> List[Path]:

@@ -73,6 +73,17 @@ above):
 ``adaptive``
     Unchanged: the paper's definition, on lengths.
 
+Unknown-space cost
+------------------
+With a mask of the nodes that lie in unknown space (space the map never observed, see
+:mod:`uav_global_planner.core.unknown_space`) and a rate ``c >= 0`` [m per m], a step also
+costs ``c`` times its length for each of its two end nodes in unknown space, halved::
+
+    c_u(d) = c(d) + c * |d| * delta * (u(a) + u(b)) / 2,
+
+so a path pays ``c`` per metre it runs between unknown nodes. The extra cost is >= 0, so every
+heuristic above keeps its guarantees (admissible and consistent where it was).
+
 Implementation: a kernel compiled by numba (:mod:`uav_global_planner.core.jit`) works on flat
 C-order node numbers. The per-node arrays (cost g, parent direction, heap position, generation
 stamp) and the heap live in a :class:`SearchWorkspace` and are allocated once; a query bumps a
@@ -190,6 +201,9 @@ _P_OMEGA_UP = 3      # climb weight - 1
 _P_OMEGA_DOWN = 4    # descent weight - 1
 _P_KAPPA = 5         # scale of the Euclidean heuristic
 _PARAMS_SIZE = 6
+
+# Half the extra cost per step of a node in unknown space, none: the kernel's stand-in.
+_NO_UNKNOWN_STEP = np.zeros(0, dtype=np.float64)
 
 
 def _directions() -> np.ndarray:
@@ -359,8 +373,25 @@ def _pop_fill(heap_node, heap_rec, heap_key, node_int, size, node, rec, f, h):
 
 
 @njit
+def _unknown_at(flat, table, pool, node, i, j, k, by, bz):  # pragma: no cover - compiled
+    """1.0 when the node is in the unknown-space mask (dense ``flat``, else the block-sparse
+    ``table`` and ``pool``), else 0.0."""
+    if flat.shape[0] > 0:
+        return 1.0 if flat[node] else 0.0
+    brick = ((i >> BRICK_BITS) * by + (j >> BRICK_BITS)) * bz + (k >> BRICK_BITS)
+    kind = table[brick]
+    if kind == FULL:
+        return 1.0
+    if kind >= 0:
+        local = (((i & _BRICK_MASK) * BRICK) + (j & _BRICK_MASK)) * BRICK + (k & _BRICK_MASK)
+        return 1.0 if pool[kind, local] else 0.0
+    return 0.0
+
+
+@njit
 def _expand(blocked, mask_table, mask_pool, bricks, slots, node_g, node_int, parent, heap_node,
-            heap_rec, heap_key, directions, delta, step_cost, state, params, max_pops):
+            heap_rec, heap_key, directions, delta, step_cost, unknown, unknown_table,
+            unknown_pool, unknown_step, state, params, max_pops):
     """Run at most ``max_pops`` expansions of the search described by ``state``.
 
     Two record layouts share this loop; numba compiles one version of it for each, the tests
@@ -377,6 +408,10 @@ def _expand(blocked, mask_table, mask_pool, bricks, slots, node_g, node_int, par
     neighbours (the caller grows them and resumes); ``state`` is updated so the call can be
     resumed. Node records are only meaningful when their stamp equals the current generation;
     a heap position of -1 marks a closed node.
+
+    ``unknown_step`` (26 values, or empty for none) is half the extra cost of each step per end
+    node in unknown space (module notes); the mask is ``unknown`` (dense, flat) or
+    ``unknown_table`` and ``unknown_pool`` (block-sparse, the bricks of ``bricks``).
     """
     generation = np.int32(state[_S_GEN])
     size = state[_S_SIZE]
@@ -400,6 +435,7 @@ def _expand(blocked, mask_table, mask_pool, bricks, slots, node_g, node_int, par
     by = bricks[1]
     bz = bricks[2]
     nyz = ny * nz
+    charged = unknown_step.shape[0] > 0
     pops = 0
     status = _PAUSED
     while True:
@@ -433,6 +469,9 @@ def _expand(blocked, mask_table, mask_pool, bricks, slots, node_g, node_int, par
         j = rest // nz
         k = rest - j * nz
         g_node = node_g[2 * rec_node]
+        u_node = 0.0
+        if charged:
+            u_node = _unknown_at(unknown, unknown_table, unknown_pool, node, i, j, k, by, bz)
         for d in range(26):
             ni = i + directions[d, 0]
             nj = j + directions[d, 1]
@@ -459,6 +498,9 @@ def _expand(blocked, mask_table, mask_pool, bricks, slots, node_g, node_int, par
             elif blocked[neighbour]:
                 continue
             g_new = g_node + step_cost[d]
+            if charged:
+                g_new += (u_node + _unknown_at(unknown, unknown_table, unknown_pool, neighbour,
+                                               ni, nj, nk, by, bz)) * unknown_step[d]
             if node_int[4 * rec + _STAMP_SLOT] != generation:
                 # First visit in this query: the record is stale, overwrite it.
                 node_int[4 * rec + _STAMP_SLOT] = generation
@@ -690,7 +732,9 @@ class SearchWorkspace:
                adaptive_threshold: float, max_expansions: int = 0,
                max_time_s: float = 0.0, *, weight: float = DEFAULT_WEIGHT,
                climb_weight: float = 1.0, descent_weight: float = 1.0,
-               checkpoint: Optional[Callable[[], None]] = None) -> SearchResult:
+               checkpoint: Optional[Callable[[], None]] = None,
+               unknown: Optional[Union[np.ndarray, SparseMask]] = None,
+               unknown_cost: float = 0.0) -> SearchResult:
         """Find a path between two free nodes.
 
         Parameters
@@ -717,6 +761,11 @@ class SearchWorkspace:
             :class:`~uav_global_planner.core.errors.PlanningError` to stop the search (a
             cancelled request, a plan-wide time budget), which is re-raised with the number of
             expanded nodes.
+        unknown : numpy.ndarray of bool or SparseMask, optional
+            Nodes in unknown space, in the layout and shape of the searched mask.
+        unknown_cost : float
+            Extra cost per metre between nodes in unknown space [m/m], >= 0 (module notes);
+            ignored without ``unknown``.
 
         Returns
         -------
@@ -748,6 +797,7 @@ class SearchWorkspace:
         w = check_setting('search_weight', weight, 'weight')
         climb = check_setting('climb_weight', climb_weight)
         descent = check_setting('descent_weight', descent_weight)
+        rate = check_setting('unknown_cost', unknown_cost)
 
         with self._lock:
             if self._is_blocked(start):
@@ -759,6 +809,7 @@ class SearchWorkspace:
             step_cost = delta_m * (_STEP_LENGTH + (climb - 1.0) * _UP + (descent - 1.0) * _DOWN)
             state = self._state
             flat, table, pool = self._kernel_masks()
+            u_flat, u_table, u_pool, u_step = self._unknown_arrays(unknown, rate, delta_m)
             while True:
                 if budget_s > 0.0 or checkpoint is not None:
                     pops = _CHUNK
@@ -768,8 +819,8 @@ class SearchWorkspace:
                     pops = min(pops, budget_n - int(state[_S_EXPANDED]))
                 status = _expand(flat, table, pool, self._bricks, self._slots, self._node_g,
                                  self._node_int, self._parent, self._heap_node, self._heap_rec,
-                                 self._heap_key, _DIRECTIONS, self._delta, step_cost, state,
-                                 self._params, pops)
+                                 self._heap_key, _DIRECTIONS, self._delta, step_cost, u_flat,
+                                 u_table, u_pool, u_step, state, self._params, pops)
                 if status == _GROW:
                     self._grow()
                     continue
@@ -807,6 +858,23 @@ class SearchWorkspace:
         path = np.stack(np.unravel_index(flat_path, self.shape), axis=-1).astype(np.int64)
         return SearchResult(path_indices=path, cost_m=cost, expanded_nodes=expanded,
                             search_time_s=elapsed)
+
+    def _unknown_arrays(self, unknown: Optional[Union[np.ndarray, SparseMask]], rate: float,
+                        resolution: float) -> Tuple[np.ndarray, np.ndarray, np.ndarray,
+                                                    np.ndarray]:
+        """The unknown-space mask and step charges as :func:`_expand` takes them."""
+        if unknown is None or not rate > 0.0:
+            return _NO_MASK, _NO_TABLE, _NO_POOL, _NO_UNKNOWN_STEP
+        if isinstance(unknown, SparseMask) != self._sparse or tuple(unknown.shape) != self.shape:
+            raise InvalidInputError(
+                f'the unknown-space mask must have the layout and shape {self.shape} of the '
+                f'searched mask, got a {type(unknown).__name__} of shape {unknown.shape}')
+        step = 0.5 * rate * resolution * _STEP_LENGTH
+        if isinstance(unknown, SparseMask):
+            return _NO_MASK, unknown.table, unknown.pool, step
+        if unknown.dtype != np.bool_:
+            raise InvalidInputError('the unknown-space mask must be a bool array')
+        return np.ascontiguousarray(unknown).reshape(-1), _NO_TABLE, _NO_POOL, step
 
     def _begin(self, start: int, goal: int, code: int, resolution: float, eta: float,
                weight: float, climb: float = 1.0, descent: float = 1.0) -> None:
@@ -908,7 +976,9 @@ def _checked_float(name: str, value, positive: bool) -> float:
 def search(blocked: Union[np.ndarray, SparseMask], start_index, goal_index, algorithm: str,
            resolution: float, adaptive_threshold: float, max_expansions: int = 0,
            max_time_s: float = 0.0, *, weight: float = DEFAULT_WEIGHT,
-           climb_weight: float = 1.0, descent_weight: float = 1.0) -> SearchResult:
+           climb_weight: float = 1.0, descent_weight: float = 1.0,
+           unknown: Optional[Union[np.ndarray, SparseMask]] = None,
+           unknown_cost: float = 0.0) -> SearchResult:
     """One-off search on a fresh :class:`SearchWorkspace`; see :meth:`SearchWorkspace.search`.
 
     Prefer a workspace kept alive between queries on the same grid: this allocates (lazily) the
@@ -917,4 +987,5 @@ def search(blocked: Union[np.ndarray, SparseMask], start_index, goal_index, algo
     return SearchWorkspace(blocked).search(start_index, goal_index, algorithm, resolution,
                                            adaptive_threshold, max_expansions, max_time_s,
                                            weight=weight, climb_weight=climb_weight,
-                                           descent_weight=descent_weight)
+                                           descent_weight=descent_weight, unknown=unknown,
+                                           unknown_cost=unknown_cost)

@@ -47,6 +47,14 @@ SMOOTHING_MODES = ('chord', 'index', 'none')
 #: towards the goal.
 YAW_MODES = ('velocity', 'fixed', 'goal')
 
+#: What the planner does with space a map never observed (:mod:`.unknown_space`): an obstacle,
+#: open air, or open air at a cost per metre.
+UNKNOWN_SPACE_MODES = ('occupied', 'free', 'cost')
+
+#: The words of the ``ground`` setting besides a height: no ground, or flat ground at the
+#: bounds' floor.
+GROUND_WORDS = ('none', 'floor')
+
 
 class Kind(Enum):
     """Value type of a setting."""
@@ -58,6 +66,7 @@ class Kind(Enum):
     POINT = 'point'
     TEXT = 'text'
     NAMES = 'names'
+    WORD_OR_NUMBER = 'word or number'
 
 
 _NUMBER_TYPES = (int, float, np.integer, np.floating)
@@ -87,7 +96,8 @@ class Setting:
     low_open : bool
         The range excludes ``low``.
     choices : tuple of str
-        Accepted words of a :attr:`Kind.CHOICE` setting.
+        Accepted words of a :attr:`Kind.CHOICE` setting, or the words a
+        :attr:`Kind.WORD_OR_NUMBER` setting takes besides a number in its range.
     accepts : str
         Accepted values in words, for text settings (and to replace the generated words).
     non_empty : bool
@@ -156,6 +166,9 @@ class Setting:
             return 'true or false'
         if self.kind is Kind.POINT:
             return 'three numbers [x, y, z]'
+        if self.kind is Kind.WORD_OR_NUMBER:
+            return (f'{", ".join(self.choices)} or a number in [{float(self.low)}, '
+                    f'{float(self.upper)}]')
         return 'a string'
 
     @property
@@ -174,7 +187,7 @@ class Setting:
     def constraints(self) -> str:
         """Accepted values with the unit and the cross-field rule, e.g. ``in (0.0, 100.0] m``."""
         text = self.accepted
-        if self.unit and self.kind in (Kind.FLOAT, Kind.INT, Kind.POINT):
+        if self.unit and self.kind in (Kind.FLOAT, Kind.INT, Kind.POINT, Kind.WORD_OR_NUMBER):
             text += f' {self.unit}'
         if self.rule:
             text += f'; {self.rule}'
@@ -228,6 +241,8 @@ class Setting:
                 if not math.isfinite(float(item)):
                     return f'[{axis}]', f'must be finite, got {float(item)}'
             return None
+        if kind is Kind.WORD_OR_NUMBER:
+            return _word_or_number_refusal(value, self)
         if kind is Kind.TEXT:
             if not isinstance(value, str) or (self.non_empty and not value.strip('/ ')):
                 return '', f'must be {self.accepted}, got {value!r}'
@@ -249,6 +264,8 @@ class Setting:
             return tuple(float(item) for item in value)
         if self.kind is Kind.NAMES:
             return tuple(str(item) for item in value)
+        if self.kind is Kind.WORD_OR_NUMBER:
+            return value if value in self.choices else float(value)
         return value
 
     def check(self, value: Any, label: Optional[str] = None) -> Any:
@@ -284,6 +301,25 @@ def _float_refusal(value: Any, setting: Setting) -> Optional[Tuple[str, str]]:
         return '', f'must be finite, got {number}'
     low, high = float(setting.low), float(setting.upper)
     if (number <= low if setting.low_open else number < low) or number > high:
+        return '', f'must be {setting.accepted}, got {number}'
+    return None
+
+
+def _word_or_number_refusal(value: Any, setting: Setting) -> Optional[Tuple[str, str]]:
+    """A word of ``setting.choices`` or a finite number in range; a number may come as text
+    (a string parameter of the node, a command-line word)."""
+    if isinstance(value, str):
+        if value in setting.choices:
+            return None
+        try:
+            number = float(value)
+        except ValueError:
+            return '', f'must be {setting.accepted}, got {value!r}'
+    elif isinstance(value, bool) or not isinstance(value, _NUMBER_TYPES):
+        return '', f'must be {setting.accepted}, got {value!r}'
+    else:
+        number = float(value)
+    if not math.isfinite(number) or not setting.low <= number <= setting.upper:
         return '', f'must be {setting.accepted}, got {number}'
     return None
 
@@ -394,6 +430,14 @@ PLANNER_SETTINGS: Tuple[Setting, ...] = (
             'curve leaves less room, the reference slows so its predicted error fits.', 'm',
             0.0, 100.0, field='tracking_margin', scene_key='vehicle.tracking_margin',
             flag='--tracking-margin'),
+    Setting('start_tolerance', Kind.FLOAT, 0.5, 'start tolerance',
+            'A start or goal below the floor or the ground by at most this distance, or within '
+            'the safety margin of the ground, is lifted straight up to the lowest free height '
+            '(its take-off or landing leg); a start outside the bounds or within the safety '
+            'margin of another obstacle by at most this distance is moved to the nearest free '
+            'point. The plan says so; about delta. 0 = never.', 'm', 0.0, 100.0,
+            field='start_tolerance', scene_key='planner.start_tolerance',
+            flag='--start-tolerance'),
     Setting('climb_weight', Kind.FLOAT, 1.0, 'climb weight',
             'Energy-aware step cost: a climbing grid step costs its length plus (weight - 1) '
             "times its rise; 1 gives the paper's geometric length (eq. 15).", '', 0.0, 100.0,
@@ -401,12 +445,39 @@ PLANNER_SETTINGS: Tuple[Setting, ...] = (
     Setting('descent_weight', Kind.FLOAT, 1.0, 'descent weight',
             'As climb_weight for descending steps; below 1 makes descending cheaper.', '', 0.0,
             100.0, field='descent_weight', scene_key='cost.descent_weight'),
+    Setting('unknown_space', Kind.CHOICE, 'occupied', 'unknown-space policy',
+            'Space the map never observed (OctoMap unknown cells, outside the known_volume '
+            'of a scene): occupied (an obstacle the margin is kept from; a start or goal in '
+            'it is refused), free (flown through) or cost (flown through at unknown_cost extra '
+            'per metre, weighed against detours by the search). Every plan reports its length '
+            'in unknown space.', choices=UNKNOWN_SPACE_MODES, field='unknown_space',
+            scene_key='unknown_space', flag='--unknown-space'),
+    Setting('unknown_cost', Kind.FLOAT, 10.0, 'cost per metre through unknown space',
+            'Extra search cost per metre flown through unknown space with unknown_space cost: '
+            'a detour of up to this many metres per metre of unknown space avoided is taken.',
+            '', 0.0, 1.0e6, field='unknown_cost', scene_key='unknown_cost',
+            flag='--unknown-cost'),
     Setting('vehicle_mass', Kind.FLOAT, 1.5, 'take-off mass m',
             'Vehicle mass of the energy estimate of every plan.', 'kg', 0.0, 1000.0,
             low_open=True, field='vehicle_mass', scene_key='vehicle.mass'),
     Setting('hover_power', Kind.FLOAT, 180.0, 'hover power P_h',
             'Electrical power to hover, of the energy estimate of every plan.', 'W', 0.0, 1.0e6,
             low_open=True, field='hover_power', scene_key='vehicle.hover_power'),
+    Setting('ground', Kind.WORD_OR_NUMBER, 'none', 'ground',
+            'The ground the planning margin is kept from where the scene has no terrain: none '
+            '(the bounds floor is only a wall of the grid), floor (flat ground at bounds.min '
+            'z) or a height in the map frame; a terrain, when given, is the ground.', 'm',
+            -1.0e5, 1.0e5, choices=GROUND_WORDS, field='ground', scene_key='ground',
+            flag='--ground'),
+    Setting('min_agl', Kind.FLOAT, 0.0, 'lowest height above ground',
+            'The whole curve stays at least this high above the ground or terrain under it; '
+            '0 = off.', 'm', 0.0, 1.0e4, rule='below max_agl when both are on',
+            field='min_agl', scene_key='min_agl', flag='--min-agl'),
+    Setting('max_agl', Kind.FLOAT, 0.0, 'highest height above ground',
+            'The whole curve stays at most this high above the ground or terrain under it '
+            '(120 m in most jurisdictions); 0 = off.', 'm', 0.0, 1.0e4,
+            rule='above min_agl when both are on', field='max_agl', scene_key='max_agl',
+            flag='--max-agl'),
     Setting('map_downsample', Kind.FLOAT, 0.0, 'map downsampling cell',
             'One point (the cell centre) per occupied cell of the map files; 0 = none. gamma '
             'grows by the map margin (cell*sqrt(3)/2) so paths keep gamma from the map as '

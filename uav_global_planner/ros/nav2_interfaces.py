@@ -71,6 +71,7 @@ from rclpy.task import Future
 from uav_global_planner.core.config import ALGORITHMS
 from uav_global_planner.core.errors import InvalidInputError
 from uav_global_planner.core.result import PlanResult
+from uav_global_planner.core.start_admission import nearest_free_node
 from uav_global_planner.core.status import (NAV2_CODE_BY_STATUS, NAV2_INVALID_PLANNER,
                                             NAV2_NONE, NAV2_UNKNOWN, PlanStatus)
 from uav_global_planner.ros import conversions as conv
@@ -103,10 +104,6 @@ MAX_TAKEOVER_REPLANS = 2
 #: ``error_msg`` of a goal that a newer goal on the same action replaced.
 PREEMPTED_TEXT = 'preempted by a newer goal'
 
-#: Room kept between a tolerance-chosen goal node and gamma, in cells (the core's endpoint
-#: check refuses nodes at gamma within rounding).
-_FREE_NODE_ROOM = 1e-4
-
 
 class InvalidPlannerIdError(InvalidInputError):
     """A goal's ``planner_id`` names no algorithm of the planner (Nav2's INVALID_PLANNER)."""
@@ -136,6 +133,9 @@ class PlanHost(Protocol):
 
     def current_settings(self) -> Any:
         """The node's settings in force (``frame_id``, ``config``)."""
+
+    def map_refusal(self) -> str:
+        """Why no request may be planned for want of a usable map file ('' when none)."""
 
     def predict_takeover(self, snapshot: Any, request_start: Optional[np.ndarray]) -> Takeover:
         """On the worker: the state a plan beginning now starts from (the vehicle's predicted
@@ -180,64 +180,6 @@ def result_code(status: PlanStatus, through_poses: bool) -> int:
     ComputePathThroughPoses (NONE stays 0)."""
     code = NAV2_CODE_BY_STATUS[status]
     return code + THROUGH_POSES_OFFSET if through_poses and code != NAV2_NONE else code
-
-
-def nearest_free_node(grid, obstacles, safety_margin: float, goal: np.ndarray,
-                      tolerance: float) -> Optional[np.ndarray]:
-    """The grid node nearest to ``goal`` within ``tolerance`` that keeps the safety margin.
-
-    Shells of growing Chebyshev radius around the goal's node are searched until no closer node
-    can follow, so the cost follows the distance to the nearest free node, not the tolerance.
-
-    Parameters
-    ----------
-    grid : VoxelGrid
-    obstacles : ObstacleSet
-    safety_margin : float
-        gamma [m]; a node is free when its clearance exceeds it.
-    goal : numpy.ndarray, shape (3,)
-        [m], inside the bounds.
-    tolerance : float
-        Largest accepted distance from ``goal`` [m].
-
-    Returns
-    -------
-    numpy.ndarray of shape (3,) or None
-        The node's position [m], or None when no free node lies within ``tolerance``.
-    """
-    delta = grid.resolution
-    center = grid.world_to_index(goal)
-    limit = int(math.ceil(tolerance / delta)) + 1
-    shape = np.asarray(grid.shape)
-    best: Optional[Tuple[float, np.ndarray]] = None
-    for radius in range(limit + 1):
-        # Every node of a shell of radius r is at least (r - 1) * delta from the goal (the goal
-        # lies within half a cell of the centre node): stop once nothing closer can come.
-        if best is not None and (radius - 1) * delta > best[0]:
-            break
-        axis = np.arange(-radius, radius + 1)
-        offsets = np.stack(np.meshgrid(axis, axis, axis, indexing='ij'), -1).reshape(-1, 3)
-        offsets = offsets[np.max(np.abs(offsets), axis=1) == radius]
-        nodes = center + offsets
-        nodes = nodes[np.all((nodes >= 0) & (nodes < shape), axis=1)]
-        if len(nodes) == 0:
-            continue
-        points = grid.index_to_world(nodes)
-        distances = np.linalg.norm(points - goal, axis=1)
-        near = distances <= tolerance
-        if not np.any(near):
-            continue
-        points, distances = points[near], distances[near]
-        if obstacles.is_empty():
-            free = np.ones(len(points), dtype=bool)
-        else:
-            free = obstacles.distance(points) > safety_margin + _FREE_NODE_ROOM * delta
-        if not np.any(free):
-            continue
-        index = int(np.argmin(np.where(free, distances, np.inf)))
-        if best is None or distances[index] < best[0]:
-            best = (float(distances[index]), points[index])
-    return None if best is None else best[1].copy()
 
 
 # --------------------------------------------------------------------------------------------
@@ -527,6 +469,10 @@ class PlannerInterfaces:
         if request.cancel.is_set():
             text = PREEMPTED_TEXT if request.preempted else 'cancelled before planning'
             return _Outcome(None, PlanStatus.CANCELED, text, 0.0)
+        refusal = self._host.map_refusal()
+        if refusal:
+            # Planning without the map file asked for would fly through what it holds.
+            return _Outcome(None, PlanStatus.INVALID_INPUT, refusal, 0.0)
         if request.start is not None:
             start, source = request.start, StartSource.REQUEST
         else:

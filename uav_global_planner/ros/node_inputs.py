@@ -31,6 +31,10 @@ class CommandInputs:
 
     def _map_missing(self, settings: NodeSettings) -> Optional[str]:
         """Why goals cannot be planned yet for want of a map, or None (caller holds _wake)."""
+        refusal = self.map_refusal()
+        if refusal:
+            # Read once at start-up: planning without the map asked for would fly through it.
+            return refusal
         if settings.plan_without_map:
             return None
         sources = self._sources

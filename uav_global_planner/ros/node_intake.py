@@ -21,6 +21,7 @@ from uav_global_planner.core.errors import InvalidInputError
 from uav_global_planner.core.live_map import UNCHANGED
 from uav_global_planner.ros import conversions as conv
 from uav_global_planner.ros.geofence_source import geofence_shapes
+from uav_global_planner.ros.ground_source import ground_key, ground_shapes
 from uav_global_planner.ros.node_state import InForce
 from uav_global_planner.ros.parameters import NodeSettings
 
@@ -159,6 +160,11 @@ class MapIntake:
         if airspace is not None:
             self._intake_geofence = geofence_shapes(airspace)
             shapes_changed = True
+        terrain = self._terrain_state
+        if ground_key(settings.config, terrain) != self._ground_key:
+            self._intake_ground = ground_shapes(settings.config, terrain)
+            self._ground_key = ground_key(settings.config, terrain)
+            shapes_changed = True
         if not (shapes_changed or cloud is not UNCHANGED or reconfigure):
             self._accept_map(accepted)
             return
@@ -169,7 +175,8 @@ class MapIntake:
         started = time.perf_counter()
         try:
             # The cloud array is fresh from the message: handed over without a copy.
-            live = self._builder.update(shapes={**markers, **self._intake_geofence}
+            live = self._builder.update(shapes={**markers, **self._intake_geofence,
+                                                **self._intake_ground}
                                         if shapes_changed else None,
                                         cloud=cloud, config=settings.config, held=held,
                                         give_cloud=True, held_fallback=held_fallback)

@@ -2,7 +2,8 @@
 
 A mixin of :class:`~uav_global_planner.ros.planner_node.PlannerNode`: the on-set callback
 refuses a set of values that does not validate together (and a geofence file that cannot be
-read, so the geofence in force stays); the post-set callback hands the new settings to the
+read, or bounds or a geodetic origin the terrain_file cannot be placed on, so the geofence and
+the terrain in force stay); the post-set callback hands the new settings to the
 worker and the intake, and withdraws the plan in force when the frame changes.
 """
 
@@ -17,10 +18,12 @@ from uav_global_planner.core.errors import InvalidInputError
 from uav_global_planner.ros import conversions as conv
 from uav_global_planner.ros.geofence_source import (airspace_from_values, describe,
                                                     geofence_key, GEOFENCE_PARAMETERS)
+from uav_global_planner.ros.mission_service import ORIGIN_PARAMETER
 from uav_global_planner.ros.node_state import SourceState
-from uav_global_planner.ros.parameters import (plain as _plain, settings_from_parameters,
-                                               SPECS_BY_NAME)
+from uav_global_planner.ros.parameters import (NodeSettings, plain as _plain,
+                                               settings_from_parameters, SPECS_BY_NAME)
 from uav_global_planner.ros.start_source import StartSource
+from uav_global_planner.ros.terrain_source import read_terrain, terrain_key
 
 
 class ParameterHandling:
@@ -49,10 +52,51 @@ class ParameterHandling:
                 # The file is read here, so a bad fence is refused with the reason and the
                 # geofence in force stays.
                 airspace_from_values(geofence)
+            self._check_terrain(values, geofence[ORIGIN_PARAMETER])
         except InvalidInputError as error:
             self._log.warning(f'parameter change refused: {error}')
             return SetParametersResult(successful=False, reason=str(error))
         return SetParametersResult(successful=True)
+
+    def _check_terrain(self, values: Dict[str, Any], origin: Any) -> None:
+        """Read the terrain_file again when ``values`` and ``origin`` move or re-place it; keep
+        it for :meth:`_follow_terrain`.
+
+        Raises
+        ------
+        InvalidInputError
+            When the terrain in force cannot be read for them (it stays in force).
+        """
+        state = getattr(self, '_terrain_state', None)
+        if state is None or not state.file:
+            return  # not read yet (start-up), or no terrain_file
+        config = settings_from_parameters(values, self._map_margin_m).config
+        if terrain_key(state.file, config, origin) == state.key:
+            return
+        candidate = read_terrain(state.file, config, origin)
+        if candidate.refusal and not state.refusal:
+            raise InvalidInputError(f'terrain_file cannot follow: {candidate.refusal}; the '
+                                    'terrain in force stays')
+        self._terrain_candidate = candidate
+
+    def _follow_terrain(self, settings: NodeSettings) -> bool:
+        """Put the terrain of the settings and geodetic origin in force (the one read by
+        :meth:`_check_terrain`, or read now); True when it changed."""
+        state = getattr(self, '_terrain_state', None)
+        if state is None or not state.file:
+            return False
+        origin = self._geofence_values()[ORIGIN_PARAMETER]
+        key = terrain_key(state.file, settings.config, origin)
+        if key == state.key:
+            return False
+        candidate = getattr(self, '_terrain_candidate', None)
+        self._terrain_candidate = None
+        if candidate is None or candidate.key != key:
+            candidate = read_terrain(state.file, settings.config, origin)
+        with self._wake:
+            self._terrain_state = candidate
+        self._log_terrain(candidate)
+        return True
 
     def _geofence_values(self) -> Dict[str, Any]:
         """The values of :data:`GEOFENCE_PARAMETERS` in force (geodetic_origin None when not
@@ -98,10 +142,15 @@ class ParameterHandling:
         geofence_changed = any(p.name in GEOFENCE_PARAMETERS for p in parameters)
         if not changed:
             if geofence_changed:  # geodetic_origin alone
+                if self._follow_terrain(self._settings):
+                    with self._intake_cv:  # the ground shapes follow the terrain
+                        self._inbox.reconfigure = True
+                        self._intake_cv.notify_all()
                 self._apply_geofence()
             return
         self._param_values.update(changed)
         settings = settings_from_parameters(self._param_values, self._map_margin_m)
+        self._follow_terrain(settings)
         frame_changed = False
         with self._wake:
             previous = self._settings

@@ -16,6 +16,7 @@ from uav_global_planner.core.live_map import LiveMap
 from uav_global_planner.ros import conversions as conv
 from uav_global_planner.ros.geofence_source import describe
 from uav_global_planner.ros.parameters import NodeSettings
+from uav_global_planner.ros.terrain_source import terrain_values
 
 
 class StatusPublishing:
@@ -42,13 +43,38 @@ class StatusPublishing:
         values: Dict[str, object] = {
             'map_sources': '; '.join(f'{name}: {state.summary()}'
                                      for name, state in sources.items()
-                                     if name != 'map_file' or state.delivered),
+                                     if name != 'map_file' or state.received),
             'map_refused': '; '.join(refused),
             'map_version': live.version,
         }
         if map_stamp > 0:
             values['map_age_s'] = max(
                 (self.node.get_clock().now().nanoseconds - map_stamp) * 1e-9, 0.0)
+        return values
+
+    def _prior_map_values(self) -> Dict[str, object]:
+        """What the ``map_file`` load read, dropped (and why) and kept, and its extent; or why
+        the file was refused (empty when there is no map_file)."""
+        if self._prior_refusal:
+            return {'map_file_status': 'refused', 'map_file_refused': self._prior_refusal}
+        if self._prior is None:
+            return {}
+        values: Dict[str, object] = {'map_file_status': 'ok'}
+        for report in self._prior.reports:
+            values.update({
+                'map_file': report.file, 'map_file_format': report.format,
+                'map_file_points_read': report.points_read,
+                'map_file_dropped_non_finite': report.dropped_non_finite,
+                'map_file_dropped_downsampled': report.dropped_downsampled,
+                'map_file_outside_bounds': report.outside_bounds,
+                'map_file_points_kept': report.points_kept,
+                'map_file_extent_min': np.array(report.extent_min or (np.nan,) * 3),
+                'map_file_extent_max': np.array(report.extent_max or (np.nan,) * 3),
+                'map_file_resolution_m': (np.nan if report.resolution_m is None
+                                          else report.resolution_m),
+                'map_file_downsample_m': report.downsample_m or 0.0,
+                'map_file_margin_m': report.margin_m,
+                'map_file_report': report.summary()})
         return values
 
     def _publish_diagnostics(self, stamp_ns: int, level: bytes, message: str,
@@ -110,7 +136,11 @@ class StatusPublishing:
                        'last_mask_tiles': live.update.tiles,
                        'fallback_grid_kept': live.fallback is not None})
         values.update(self._settings_values(settings))
-        if missing:
+        values.update(self._prior_map_values())
+        values.update(terrain_values(self._terrain_state))
+        if self.map_refusal():
+            level, text = DiagnosticStatus.ERROR, str(missing)
+        elif missing:
             level, text = DiagnosticStatus.WARN, missing
         elif values['map_refused']:
             level, text = DiagnosticStatus.WARN, f'map incomplete: {values["map_refused"]}'

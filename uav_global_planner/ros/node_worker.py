@@ -19,10 +19,10 @@ import numpy as np
 from uav_global_planner.core.budget import PlanStage
 from uav_global_planner.core.planner import ClearanceVerdict, Planner
 from uav_global_planner.core.result import PlanResult
+from uav_global_planner.core.start_admission import Admission, admit, explain, GOAL, START
 from uav_global_planner.core.status import NAV2_CODE_BY_STATUS, NAV2_UNKNOWN, PlanStatus
 from uav_global_planner.ros import conversions as conv
 from uav_global_planner.ros.geofence_source import describe
-from uav_global_planner.ros.nav2_interfaces import nearest_free_node
 from uav_global_planner.ros.node_state import Goal, Snapshot
 from uav_global_planner.ros.parameters import NodeSettings
 from uav_global_planner.ros.start_source import StartSource
@@ -105,6 +105,8 @@ class PlanningWorker:
                                            != self._planner.config.grid_key())
         if config_changed:
             self._planner.set_config(snap.settings.config)
+            if grid_changed:
+                self._follow_bounds(snap.settings.config)
         live = snap.map
         if live is not None and (live is not self._applied_map or grid_changed):
             # The map's mask when it fits the settings; else the planner inflates its own at
@@ -193,56 +195,13 @@ class PlanningWorker:
         self._publish_diagnostics(self.node.get_clock().now().nanoseconds,
                                   DiagnosticStatus.OK, text, values)
 
-    def _admissible_start(self, start: np.ndarray,
-                          settings: NodeSettings) -> Tuple[np.ndarray, str]:
-        """The start to plan from, and a note when it was moved.
-
-        A vehicle on the ground reads a little below the floor (odometry noise), or sits
-        within the safety margin of the ground it stands on: a start outside the bounds or
-        within gamma by at most ``start_tolerance`` is moved to the nearest free point (the
-        start projected into the bounds, or else the nearest free node), so the plan is a
-        take-off from there.
-        """
-        tolerance = settings.start_tolerance
-        if tolerance <= 0.0:
-            return start, ''
-        planner = self._planner
-        grid = planner.grid
-        config = planner.config
-        gamma = config.planning_margin
-        inside = bool(grid.contains(start))
-        clamped = np.clip(start, grid.bounds_min, grid.bounds_max)
-        outside_by = float(np.linalg.norm(start - clamped))
-        if inside and self._start_is_free(start, gamma):
-            return start, ''
-        if outside_by > tolerance:
-            return start, ''
-        room = 1e-4 * config.resolution
-        if self._start_is_free(clamped, gamma):
-            moved = clamped
-        else:
-            moved = nearest_free_node(grid, planner.obstacles, gamma, clamped,
-                                      max(tolerance - outside_by, 0.0) + room)
-            if moved is None or float(np.linalg.norm(moved - start)) > tolerance + room:
-                return start, ''
-        what = 'outside the bounds' if not inside else 'within the safety margin'
-        note = (f'start {np.round(start, 4).tolist()} is {what}; moved '
-                f'{float(np.linalg.norm(moved - start)):.3f} m to {np.round(moved, 4).tolist()} '
-                f'(start_tolerance {tolerance} m)')
-        return moved, note
-
-    def _start_is_free(self, point: np.ndarray, gamma: float) -> bool:
-        planner = self._planner
-        grid = planner.grid
-        if not bool(grid.contains(point)):
-            return False
-        node = tuple(grid.world_to_index(point))
-        if planner.blocked[node]:
-            return False
-        if planner.obstacles.is_empty():
-            return True
-        room = 1e-4 * planner.config.resolution
-        return float(planner.obstacles.distance(point)) > gamma + room
+    def _admitted(self, point: np.ndarray, which: str, settings: NodeSettings) -> Admission:
+        """The start (goal) to plan from (to), moved to free space by at most
+        ``start_tolerance`` (:func:`~uav_global_planner.core.start_admission.admit`): a landed
+        vehicle, below the floor or within gamma of the ground it stands on, is lifted straight
+        up (its take-off leg); a goal on the ground likewise (its landing leg)."""
+        return admit(self._planner, point, which, settings.start_tolerance,
+                     'the start_tolerance parameter')
 
     def predict_takeover(self, snap: Snapshot,
                          request_start: Optional[np.ndarray] = None) -> Takeover:
@@ -301,13 +260,19 @@ class PlanningWorker:
         settings = snap.settings
         self._replan_reason = None
         takeover = self.predict_takeover(snap)
-        start, start_note = self._admissible_start(snap.start, settings)
+        admitted = self._admitted(snap.start, START, settings)
+        landing = self._admitted(goal.position, GOAL, settings)
         fallback_builds = self._planner.fallback_builds
-        result, takeover, takeover_note = self._plan_from(takeover, start, goal, settings)
+        result, takeover, takeover_note = self._plan_from(
+            takeover, admitted.point, replace(goal, position=landing.point), settings)
         if takeover.moving:
-            start_note = ''    # the plan starts at the predicted state, not at snap.start
-        if start_note:
-            self._log.info(start_note)
+            # The plan starts at the predicted state, not at snap.start.
+            admitted = Admission(START, snap.start, snap.start)
+        result = explain(result, (admitted, landing))
+        start_note = admitted.note
+        for note in (admitted.note, landing.note):
+            if note:
+                self._log.info(note)
         if self._planner.fallback_builds != fallback_builds and self._grid_from_map:
             # This map needed the conservative grid: from now on the intake keeps it up to
             # date too, so later plans do not inflate it (a second or so on a large map).
@@ -407,6 +372,8 @@ class PlanningWorker:
             'descent_weight': snap.settings.config.descent_weight})
         if start_note:
             values['start_note'] = start_note
+        if landing.adjusted:
+            values.update(landing.values())
         if snap.map is not None:
             # Whether the plan searched the intake's mask (built off the planning thread, for
             # the gamma below) or inflated its own (grid_build_time_s).

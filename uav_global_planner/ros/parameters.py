@@ -27,6 +27,7 @@ from rclpy.node import Node
 
 from uav_global_planner.core.config import PlannerConfig, validate_config
 from uav_global_planner.core.errors import InvalidInputError
+from uav_global_planner.core.ground import ground_obstacles
 from uav_global_planner.core.settings import (by_name, INT64_MAX, Kind, planner_settings,
                                               Setting)
 from uav_global_planner.ros.qos import CLOUD_QOS_BY_RELIABILITY
@@ -66,8 +67,17 @@ NODE_SETTINGS: Tuple[Setting, ...] = (
             'no longer keeps clearance >= gamma.'),
     Setting('map_file', Kind.TEXT, '', 'static prior map',
             'A .pcd, .ply, .las, .laz, .bt or .npy file of occupied points in frame_id [m], '
-            'combined with the obstacles and obstacle_cloud topics. Read at start-up.',
+            'combined with the obstacles and obstacle_cloud topics. Read at start-up; a file '
+            'that cannot be used (unreadable, no usable points, all outside the bounds) is '
+            'refused: goals are refused and the map status says why.',
             accepts=_PATH_OR_NONE, read_only=True),
+    Setting('terrain_file', Kind.TEXT, '', 'terrain',
+            'A digital elevation model: a GeoTIFF (placed with geodetic_origin when it is set, '
+            'else its CRS must be projected in metres and is frame_id) or an ESRI ASCII grid '
+            '(.asc, in frame_id); .npy is refused. It is the ground (instead of ground), and '
+            'min_agl and max_agl follow it. Read at start-up and again when the bounds or '
+            'geodetic_origin change; a file that cannot be used is refused: goals are refused '
+            'and the map status says why.', accepts=_PATH_OR_NONE, read_only=True),
     Setting('cloud_qos_reliability', Kind.CHOICE, 'reliable', 'reliability of obstacle_cloud',
             'Either reliable (large clouds arrive whole; needs a reliable publisher) or '
             'best_effort (for best-effort sensor publishers; clouds may be lost). Read at '
@@ -84,10 +94,6 @@ NODE_SETTINGS: Tuple[Setting, ...] = (
             'Map sources that must have delivered before goals are planned: any (at least one '
             'of them) or a list of obstacles, obstacle_cloud, map_file (each of them).',
             accepts="['any'] or distinct names among " + ', '.join(MAP_SOURCES)),
-    Setting('start_tolerance', Kind.FLOAT, 0.5, 'start tolerance',
-            'A start outside the bounds (below the floor: a landed vehicle) or within the '
-            'safety margin by at most this distance is moved to the nearest free point, and '
-            'the plan says so; about delta. 0 = never.', 'm', 0.0, 100.0),
     Setting('start_replan_distance', Kind.FLOAT, 2.0, 'start replan distance',
             "A plan whose start is farther than this from the vehicle's newest position (odom "
             'or start_pose) when it is ready is made again from there; 0 = never.', 'm', 0.0,
@@ -145,6 +151,9 @@ def descriptor(spec: Setting) -> ParameterDescriptor:
     elif spec.kind is Kind.INT:
         result.integer_range = [IntegerRange(from_value=int(spec.low),
                                              to_value=min(int(spec.upper), INT64_MAX), step=1)]
+    elif spec.kind is Kind.WORD_OR_NUMBER:
+        # A word or a number (ground: floor, ground:=2.5): the table checks which.
+        result.dynamic_typing = True
     return result
 
 
@@ -167,6 +176,8 @@ class NodeSettings:
         One of :data:`CLOUD_NON_FINITE_MODES`.
     replan_on_obstacle_change : bool
     map_file : str
+    terrain_file : str
+        '' = no terrain.
     map_downsample : float
         [m], 0 = none.
     cloud_qos_reliability : str
@@ -176,8 +187,6 @@ class NodeSettings:
     plan_without_map : bool
     required_map_sources : tuple of str
         ``('any',)`` or a subset of :data:`MAP_SOURCES`.
-    start_tolerance : float
-        [m]
     start_replan_distance : float
         [m], 0 = off.
     geofence_file : str
@@ -194,16 +203,22 @@ class NodeSettings:
     cloud_non_finite: str
     replan_on_obstacle_change: bool
     map_file: str = ''
+    terrain_file: str = ''
     map_downsample: float = 0.0
     cloud_qos_reliability: str = 'reliable'
     trajectory_sample_period: float = 0.05
     plan_without_map: bool = False
     required_map_sources: Tuple[str, ...] = ('any',)
-    start_tolerance: float = 0.5
     start_replan_distance: float = 2.0
     geofence_file: str = ''
     geofence_floor: float = 0.0
     geofence_ceiling: float = 120.0
+
+    @property
+    def start_tolerance(self) -> float:
+        """How far a start or goal is moved to free space at most [m] (``config.start_tolerance``,
+        a setting of the core's table: :mod:`uav_global_planner.core.start_admission`)."""
+        return float(self.config.start_tolerance)
 
 
 def plain(value: Any) -> Any:
@@ -241,6 +256,11 @@ def settings_from_parameters(values: Mapping[str, Any],
     config = validate_config(PlannerConfig(**fields))
     if map_margin_m:
         config = config.with_changes(safety_margin=config.safety_margin + map_margin_m)
+    # A height band needs a ground, and a flat ground lies below the bounds' top; a
+    # terrain_file is the ground (read by the node, which reports it when refused).
+    terrain = values.get('terrain_file', '')
+    if not (isinstance(terrain, str) and terrain.strip()):
+        ground_obstacles(config)
     node = {spec.name: spec.check(plain(values[spec.name])) for spec in specs
             if not spec.field}
     required = node['required_map_sources']

@@ -84,10 +84,12 @@ from uav_global_planner.core.live_map import LiveMap, LiveMapBuilder
 from uav_global_planner.core.mapfiles import load_prior_map, MapPoints
 from uav_global_planner.core.planner import Planner
 from uav_global_planner.core.result import PlanResult
+from uav_global_planner.core.unknown_space import unknown_from_map_files, UnknownSpace
 from uav_global_planner.ros import conversions as conv
 from uav_global_planner.ros.geofence_source import (airspace_from_values, geofence_key,
                                                     geofence_shapes)
-from uav_global_planner.ros.mission_service import MissionExportService
+from uav_global_planner.ros.ground_source import ground_key, ground_shapes
+from uav_global_planner.ros.mission_service import MissionExportService, ORIGIN_PARAMETER
 from uav_global_planner.ros.names import NODE_NAME, READY_TEXT
 from uav_global_planner.ros.nav2_interfaces import PlannerInterfaces
 from uav_global_planner.ros.node_in_force import PlanInForce
@@ -105,6 +107,8 @@ from uav_global_planner.ros.qos import (CLOUD_QOS_BY_RELIABILITY, COMMAND_QOS, D
                                         LATCHED_QOS, OBSTACLES_QOS, SENSOR_QOS)
 from uav_global_planner.ros.start_source import StartSource
 from uav_global_planner.ros.takeover import TakeoverPredictor
+from uav_global_planner.ros.terrain_source import (describe_terrain, read_terrain,
+                                                   TerrainState)
 
 #: Marker-publishing check period [s]: markers go out only when someone subscribes.
 _MARKER_PERIOD_S = 0.5
@@ -136,7 +140,10 @@ class PlannerNode(ParameterHandling, CommandInputs, MapIntake, PlanInForce, Plan
     Raises
     ------
     InvalidInputError
-        When the parameters given at start-up are invalid, or ``map_file`` cannot be read.
+        When the parameters given at start-up are invalid. A ``map_file`` that cannot be read,
+        or cannot be right (no usable points, all outside the bounds, see
+        :mod:`~uav_global_planner.core.mapfiles`), is refused instead: the node runs without it,
+        reports why in the log and the map status, and refuses goals.
     """
 
     def __init__(self, node_name: str = NODE_NAME, **node_options: Any) -> None:
@@ -149,14 +156,34 @@ class PlannerNode(ParameterHandling, CommandInputs, MapIntake, PlanInForce, Plan
         self._param_values = declare_parameters(self.node)
         # Validated before the map file is read: a typo elsewhere is reported first.
         first = settings_from_parameters(self._param_values)
-        self._prior: Optional[MapPoints] = load_prior_map(first.map_file, first.map_downsample)
+        self._prior: Optional[MapPoints] = None
+        # Why map_file was refused ('': it was not); map_file is read once, at start-up.
+        self._prior_refusal = ''
+        # Space an OctoMap map_file never observed, within the bounds (see _follow_bounds).
+        unknown: Optional[UnknownSpace] = None
+        try:
+            self._prior = load_prior_map(
+                first.map_file, first.map_downsample,
+                bounds=(first.config.bounds_min, first.config.bounds_max),
+                reach=first.config.safety_margin, resolution=first.config.resolution)
+            if self._prior is not None:
+                unknown = unknown_from_map_files([first.map_file.strip()],
+                                                 first.config.bounds_min,
+                                                 first.config.bounds_max)
+        except InvalidInputError as error:
+            self._prior = None
+            self._prior_refusal = str(error)
+            self._log.error(f'refused map_file: {error}; goals are refused until the node is '
+                            'restarted with a map file that can be used (or none)')
         self._map_margin_m = self._prior.margin_m if self._prior is not None else 0.0
         settings = settings_from_parameters(self._param_values, self._map_margin_m)
         # Registered after declaring, so start-up values are checked once above, not per item.
         self.node.add_on_set_parameters_callback(self._validate_parameters)
         self.node.add_post_set_parameters_callback(self._apply_parameters)
 
-        self._planner = Planner(settings.config)
+        self._planner = Planner(settings.config, unknown=unknown)
+        self._unknown_file = first.map_file.strip() if unknown is not None else ''
+        self._unknown_bounds = (tuple(first.config.bounds_min), tuple(first.config.bounds_max))
         # The prior map is indexed once (per grid) and joined to every map of the intake.
         self._builder = LiveMapBuilder(
             settings.config, None if self._prior is None else self._prior.points,
@@ -178,6 +205,9 @@ class PlannerNode(ParameterHandling, CommandInputs, MapIntake, PlanInForce, Plan
         self._sources: Dict[str, SourceState] = {name: SourceState() for name in MAP_SOURCES}
         if self._prior is not None:
             self._sources['map_file'] = SourceState(received=1, accepted=1)
+        elif self._prior_refusal:
+            self._sources['map_file'] = SourceState(received=1, refused=1, refused_last=True,
+                                                    last_refusal=self._prior_refusal)
         self._goal: Optional[Goal] = None
         self._goal_serial = 0
         self._goal_changed = False
@@ -221,6 +251,10 @@ class PlannerNode(ParameterHandling, CommandInputs, MapIntake, PlanInForce, Plan
         self._geofence_applied = 0
         # The geofence parameters the geofence in force was read from (None: not read yet).
         self._geofence_key: Optional[tuple] = None
+        # The terrain_file in force (None: not read yet; written under _wake).
+        self._terrain_state: Optional[TerrainState] = None
+        # A terrain read by the on-set callback for values about to be set (see node_reconfigure).
+        self._terrain_candidate: Optional[TerrainState] = None
         self._intake_frame = conv.normalize_frame(settings.frame_id)
         self._duplicates_reported = 0
 
@@ -263,8 +297,33 @@ class PlannerNode(ParameterHandling, CommandInputs, MapIntake, PlanInForce, Plan
         self._airspace = airspace_from_values(geofence)
         self._geofence_key = geofence_key(geofence)
         self._intake_geofence = geofence_shapes(self._airspace)
-        if self._intake_geofence:
-            self._map = self._builder.update(shapes=self._intake_geofence)
+        # The terrain_file (placed with geodetic_origin too) is the ground when there is one.
+        self._terrain_state = read_terrain(settings.terrain_file, settings.config,
+                                           geofence[ORIGIN_PARAMETER])
+        if self._terrain_state.refusal:  # a terrain read is in the ready line
+            self._log_terrain(self._terrain_state)
+        # The ground and the height band above it (ground, min_agl, max_agl) join it alike.
+        self._intake_ground = ground_shapes(settings.config, self._terrain_state)
+        self._ground_key = ground_key(settings.config, self._terrain_state)
+        if self._intake_geofence or self._intake_ground:
+            self._map = self._builder.update(shapes={**self._intake_geofence,
+                                                     **self._intake_ground})
+
+    def _follow_bounds(self, config) -> None:
+        """The unknown space of an OctoMap ``map_file`` within new bounds (read again from the
+        file; all of the bounds when it can no longer be read)."""
+        bounds = (tuple(config.bounds_min), tuple(config.bounds_max))
+        if not self._unknown_file or bounds == self._unknown_bounds:
+            return
+        try:
+            unknown = unknown_from_map_files([self._unknown_file], *bounds)
+        except InvalidInputError as error:
+            self._log.error(f'map_file: unknown space for the new bounds: {error}; all of the '
+                            'bounds count as unknown')
+            unknown = UnknownSpace(np.array(bounds[0])[None, :], np.array(bounds[1])[None, :],
+                                   self._unknown_file)
+        self._unknown_bounds = bounds
+        self._planner.set_unknown(unknown)
 
     def start(self) -> None:
         """Compile the kernels and build the grid, then start the threads and log readiness."""
@@ -279,8 +338,11 @@ class PlannerNode(ParameterHandling, CommandInputs, MapIntake, PlanInForce, Plan
         grid = self._planner.grid
         prior = ''
         if self._prior is not None:
-            prior = (f'; prior map {self._prior.source}: {len(self._prior.points)} points '
-                     f'(margin {self._prior.margin_m:.3f} m added to gamma)')
+            prior = ''.join(f'; prior map {report.summary()}' for report in self._prior.reports)
+            prior += f' (margin {self._prior.margin_m:.3f} m added to gamma)'
+        terrain = self._terrain_state
+        if terrain is not None and terrain.field is not None:
+            prior += f'; {describe_terrain(terrain)}'
         self._log.info(
             f'{READY_TEXT}: frame {settings.frame_id!r}, grid {grid.shape[0]}x{grid.shape[1]}x'
             f'{grid.shape[2]} (delta {config.resolution} m, gamma {config.safety_margin} m, '
@@ -311,6 +373,27 @@ class PlannerNode(ParameterHandling, CommandInputs, MapIntake, PlanInForce, Plan
         """The settings in force (any thread)."""
         return self._current_settings()
 
+    def map_refusal(self) -> str:
+        """Why ``map_file`` or ``terrain_file`` was refused, with what to do ('' when neither
+        was): no request is planned without the map or the terrain asked for (any thread)."""
+        if self._prior_refusal:
+            return (f'map_file refused: {self._prior_refusal}; restart the node with a map '
+                    'file that can be used, or with map_file empty')
+        terrain = self._terrain_state
+        if terrain is not None and terrain.refusal:
+            return (f'terrain_file refused: {terrain.refusal}; restart the node with a terrain '
+                    'file that can be used (or set bounds or geodetic_origin it covers), or '
+                    'with terrain_file empty')
+        return ''
+
+    def _log_terrain(self, state: TerrainState) -> None:
+        """Log the terrain read, or why it was refused."""
+        if state.refusal:
+            self._log.error(f'refused terrain_file: {state.refusal}; goals are refused until '
+                            'a terrain that can be used is in force')
+        elif state.field is not None:
+            self._log.info(f'{describe_terrain(state)}: the ground from the next plan')
+
 
 def main(args: Optional[List[str]] = None) -> int:
     """Entry point of ``planner_node``: run until SIGINT/SIGTERM, then exit with 0.
@@ -319,7 +402,7 @@ def main(args: Optional[List[str]] = None) -> int:
     -------
     int
         0 after a clean shutdown, :data:`EXIT_BAD_SETTINGS` for invalid start-up parameters
-        (or a ``map_file`` that cannot be read).
+        (a ``map_file`` that cannot be used is reported by the running node instead).
     """
     rclpy.init(args=args)
     planner: Optional[PlannerNode] = None
@@ -333,8 +416,8 @@ def main(args: Optional[List[str]] = None) -> int:
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except (InvalidInputError, ParameterException) as error:
-        # Invalid --params-file or -p values (out of range, wrong type, failing validation),
-        # or an unreadable map file: say which, and do not start.
+        # Invalid --params-file or -p values (out of range, wrong type, failing validation):
+        # say which, and do not start.
         print(f'planner_node: invalid parameters: {error}', file=sys.stderr)
         code = EXIT_BAD_SETTINGS
     except RuntimeError:

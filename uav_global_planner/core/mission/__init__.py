@@ -30,13 +30,25 @@ not samples:
 * **Leg lengths.** No leg is shorter than R, and a leg with a turn at both ends is at least 2 R
   long, so that ``A`` and ``B`` lie on the legs and neighbouring turn regions do not overlap.
 * **The ground.** Waypoints are at least ``min_height`` (default ``m``) above the bounds' floor;
-  legs and turns between points above a plane stay above it.
+  legs and turns between points above a plane stay above it. A ground or terrain among the
+  obstacles (:mod:`uav_global_planner.core.ground`: ``ground: floor``, a DEM, and the AGL band
+  above it) is certified like every obstacle, so every leg and turn keeps ``m`` from the
+  terrain and stays inside ``[min_agl, max_agl]`` above it; only the take-off climb and a
+  landing descent, straight up and down through the ground's margin, are certified against
+  the other obstacles alone.
 * **Take-off.** When the start is on the ground (within ``ground_tolerance`` of the floor) the
   mission begins with ``NAV_TAKEOFF``: a vertical climb at the start, certified like a leg, to
   the highest clear height up to ``takeoff_height`` (lower ones are tried when the first turn
   fails under an overhang); the take-off point is the first turn, the climb its incoming leg.
   The start is then home, the reference of every altitude. From a start in the air the mission
-  begins with a waypoint at the start, and home is the floor below it.
+  begins with a waypoint at the start, and home is the ground below it (the terrain's height
+  there when the obstacles hold one, else the bounds' floor).
+* **Altitudes.** Every position item is written in ``MAV_FRAME_GLOBAL_RELATIVE_ALT``: metres
+  above home, as QGroundControl, PX4 and ArduPilot fly missions without anything else. Over
+  terrain this is still the frame to use: the terrain frame (``MAV_FRAME_GLOBAL_TERRAIN_ALT``)
+  needs terrain data on the autopilot and makes it follow its own terrain model between
+  waypoints, not the straight legs certified here against the DEM; with altitudes relative to
+  home, every leg flown is the certified segment.
 * **The end.** ``loiter``: the vehicle holds at the goal (``NAV_LOITER_UNLIM``). ``land``: a
   vertical descent from the goal to the floor (``NAV_LAND``), certified, the goal being a turn.
   ``rtl``: ``NAV_RETURN_TO_LAUNCH`` as PX4 and ArduPilot fly it: climb at the goal to

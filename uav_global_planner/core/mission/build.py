@@ -17,6 +17,7 @@ from uav_global_planner.core.clearance import certify_segments
 from uav_global_planner.core.config import PlannerConfig
 from uav_global_planner.core.errors import InvalidInputError
 from uav_global_planner.core.geodesy import GeodeticOrigin
+from uav_global_planner.core.ground import ground_height, without_ground
 from uav_global_planner.core.mission.certify import (certify_triangle, TURN_CELL_INRADIUS,
                                                      turn_triangle)
 from uav_global_planner.core.mission.ends import (check_end_action, end_action_points,
@@ -74,7 +75,9 @@ def build_mission(smoothed_path: Any, obstacles: ObstacleSet, config: PlannerCon
     obstacles : ObstacleSet
         The obstacles the mission must keep clear of (map frame).
     config : PlannerConfig
-        Bounds (the floor is the ground), gamma, delta, and the speed limits of the plan.
+        Bounds (the floor is the ground, unless ``obstacles`` hold a ground or terrain height
+        field: then the ground under the start and the goal is that surface), gamma, delta,
+        and the speed limits of the plan.
     origin : GeodeticOrigin
         WGS84 position of the map frame's origin.
     settings : MissionSettings
@@ -131,7 +134,13 @@ def build_mission(smoothed_path: Any, obstacles: ObstacleSet, config: PlannerCon
         raise InvalidInputError(
             f'start and goal are {np.linalg.norm(goal - start):.3f} m apart, less than the '
             f'acceptance radius {radius} m: nothing to fly')
-    floor = float(lo[2])
+    # The ground under the start and the goal: a terrain or ground height field of the
+    # obstacles where there is one, else the bounds' floor.
+    floor = ground_height(obstacles, start[:2], float(lo[2]))
+    goal_floor = ground_height(obstacles, goal[:2], float(lo[2]))
+    # The take-off climb and the landing descent go straight up and down through the ground's
+    # margin (and an AGL floor): they are kept from every other obstacle.
+    vertical_obstacles = without_ground(obstacles)
     tolerance = delta if settings.ground_tolerance is None else float(settings.ground_tolerance)
     min_height = required if settings.min_height is None else float(settings.min_height)
     on_ground = float(start[2]) - floor <= tolerance
@@ -152,7 +161,8 @@ def build_mission(smoothed_path: Any, obstacles: ObstacleSet, config: PlannerCon
 
     # The first node: the take-off point (a turn whose incoming leg is the climb), or the start.
     if on_ground:
-        heights = takeoff_heights(obstacles, start, hi, settings, leg_margin, required, delta,
+        heights = takeoff_heights(vertical_obstacles, start, hi, settings, leg_margin, required,
+                                  delta,
                                   max(radius, floor + min_height - float(start[2])))
         firsts = [WaypointNode(start + np.array([0.0, 0.0, h]), start, -1, -1.0)
                   for h in heights]
@@ -165,7 +175,7 @@ def build_mission(smoothed_path: Any, obstacles: ObstacleSet, config: PlannerCon
     # lifted to ``min_height`` above the floor; straight legs and turn triangles between points
     # above it stay above it.
     raised = lo.copy()
-    raised[2] = min(floor + min_height, float(hi[2]))
+    raised[2] = min(float(lo[2]) + min_height, float(hi[2]))
     points[~fixed, 2] = np.maximum(points[~fixed, 2], raised[2])
     points, progress, fixed = offset_layers(points, progress, fixed, obstacles, leg_margin,
                                             radius, settings.tracking_allowance + delta, raised,
@@ -176,8 +186,9 @@ def build_mission(smoothed_path: Any, obstacles: ObstacleSet, config: PlannerCon
         mandatory = mandatory - 1
     progress = np.maximum(progress, 0.0)
 
-    end_points = end_action_points(goal, home, floor, hi, settings)
-    check_end_action(obstacles, goal, end_points, search_margin, required, delta, radius)
+    end_points = end_action_points(goal, home, goal_floor, hi, settings)
+    check_end_action(obstacles, goal, end_points, search_margin, required, delta, radius,
+                     vertical_obstacles)
     search = WaypointSearch(obstacles, points, progress, mandatory, search_margin, delta,
                             radius, end_points[0] if len(end_points) else None)
     chain = None
@@ -199,15 +210,22 @@ def build_mission(smoothed_path: Any, obstacles: ObstacleSet, config: PlannerCon
 
     nominal = np.array(([home] if on_ground else []) + [node.position for node in chain])
     geo = StoredGeo(origin, home)
-    return _assemble(nominal, end_points, on_ground, geo, obstacles, config, settings, required,
-                     (fence_polygons, fence_circles, airspace))
+    return _assemble(nominal, end_points, on_ground, geo, (obstacles, vertical_obstacles),
+                     config, settings, required, (fence_polygons, fence_circles, airspace),
+                     goal_floor)
 
 
 def _assemble(nominal: np.ndarray, end_points: np.ndarray, on_ground: bool, geo: StoredGeo,
-              obstacles: ObstacleSet, config: PlannerConfig, settings: MissionSettings,
-              required: float, fences: Tuple[Sequence[FencePolygon], Sequence[FenceCircle],
-                                             Optional[Airspace]]) -> Mission:
-    """Round to the stored values, certify what is stored and make the items."""
+              both: Tuple[ObstacleSet, ObstacleSet], config: PlannerConfig,
+              settings: MissionSettings, required: float,
+              fences: Tuple[Sequence[FencePolygon], Sequence[FenceCircle], Optional[Airspace]],
+              goal_floor: float) -> Mission:
+    """Round to the stored values, certify what is stored and make the items.
+
+    ``both`` holds the obstacles and those a take-off climb or landing descent is kept from
+    (without the ground, :func:`~uav_global_planner.core.ground.without_ground`).
+    """
+    obstacles, vertical_obstacles = both
     radius = settings.acceptance_radius
     yaw = _yaw(settings)
     lat, lon, rel = geo.stored(nominal)
@@ -222,7 +240,7 @@ def _assemble(nominal: np.ndarray, end_points: np.ndarray, on_ground: bool, geo:
     # The end action flies from the stored goal and returns to the stored home; the files hold
     # no positions of their own for it (LAND takes the goal's, RTL none).
     if len(end_points):
-        end_points = end_action_points(stored[-1], home_enu, float(config.bounds_min[2]),
+        end_points = end_action_points(stored[-1], home_enu, goal_floor,
                                        np.asarray(config.bounds_max, dtype=np.float64),
                                        settings)
     path = np.vstack([stored, end_points])
@@ -241,9 +259,20 @@ def _assemble(nominal: np.ndarray, end_points: np.ndarray, on_ground: bool, geo:
 
     delta = config.resolution
     legs = certify_segments(obstacles, flight[:-1], flight[1:], required, delta)
-    bounds = [np.min(legs.bound)] if len(legs.bound) else []
-    if not np.all(legs.clear):
-        bad = int(np.flatnonzero(~legs.clear)[0])
+    clear, leg_bounds = np.array(legs.clear, dtype=bool), np.array(legs.bound, dtype=float)
+    # The take-off climb from home and a final descent to the ground, straight up and down.
+    ground_legs = {0} if on_ground else set()
+    if settings.end in ('land', 'rtl') and len(end_points) and len(flight) > 1 \
+            and np.allclose(flight[-2, :2], flight[-1, :2]):
+        ground_legs.add(len(flight) - 2)
+    if vertical_obstacles is not obstacles and ground_legs:
+        rows = np.array(sorted(ground_legs))
+        again = certify_segments(vertical_obstacles, flight[rows], flight[rows + 1], required,
+                                 delta)
+        clear[rows], leg_bounds[rows] = again.clear, again.bound
+    bounds = [np.min(leg_bounds)] if len(leg_bounds) else []
+    if not np.all(clear):
+        bad = int(np.flatnonzero(~clear)[0])
         raise UncertifiableMissionError(
             f'the stored leg {np.round(flight[bad], 3).tolist()} -> '
             f'{np.round(flight[bad + 1], 3).tolist()} does not keep {required:.3f} m')

@@ -6,7 +6,7 @@ return above home, descend), certified with its turns. ``loiter`` flies nothing 
 """
 
 import math
-from typing import List
+from typing import List, Optional
 
 import numpy as np
 
@@ -53,14 +53,23 @@ def takeoff_heights(obstacles: ObstacleSet, start: np.ndarray, hi: np.ndarray,
 
 
 def check_end_action(obstacles: ObstacleSet, goal: np.ndarray, end_points: np.ndarray,
-                     margin: float, required: float, delta: float, radius: float) -> None:
-    """Certify the legs and the fixed turns flown after the goal (land, rtl)."""
+                     margin: float, required: float, delta: float, radius: float,
+                     descent_obstacles: Optional[ObstacleSet] = None) -> None:
+    """Certify the legs and the fixed turns flown after the goal (land, rtl).
+
+    A final descent straight down (to the ground) is certified against
+    ``descent_obstacles`` when given: the obstacles without the ground it lands on.
+    """
     if not len(end_points):
         return
     path = np.vstack([goal[None], end_points])
     legs = certify_segments(obstacles, path[:-1], path[1:], margin + TURN_CELL_INRADIUS, delta)
-    if not np.all(legs.clear):
-        bad = int(np.flatnonzero(~legs.clear)[0])
+    clear = np.array(legs.clear, dtype=bool)
+    if descent_obstacles is not None and np.allclose(path[-2, :2], path[-1, :2]):
+        clear[-1] = certify_segments(descent_obstacles, path[-2:-1], path[-1:],
+                                     margin + TURN_CELL_INRADIUS, delta).clear[0]
+    if not np.all(clear):
+        bad = int(np.flatnonzero(~clear)[0])
         raise UncertifiableMissionError(
             f'the end of the mission flies {np.round(path[bad], 3).tolist()} -> '
             f'{np.round(path[bad + 1], 3).tolist()}, which does not keep {required:.3f} m from '
