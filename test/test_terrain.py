@@ -13,9 +13,9 @@ from uav_global_planner.core.grid import VoxelGrid
 from uav_global_planner.core.inflation import (blocked_mask, reinflate_sparse,
                                                reinflate_tiles)
 from uav_global_planner.core.live_map import LiveMapBuilder, same_shape
-from uav_global_planner.core.obstacles import ObstacleSet, Sphere
+from uav_global_planner.core.obstacles import Box, ObstacleSet, PointSet, Sphere
 from uav_global_planner.core.planner import Planner
-from uav_global_planner.core.sparse_grid import SparseMask
+from uav_global_planner.core.sparse_grid import BRICK, FULL, SparseMask
 from uav_global_planner.core.terrain import column_limits, flat_ground, HeightField
 
 FAST = settings(max_examples=60, deadline=None,
@@ -299,6 +299,51 @@ def test_inflation_of_a_floor_and_a_ceiling_and_ties_at_gamma():
         assert np.array_equal(mask, expected), layout
     k_tie = int(round((-1.0 + gamma + 3.0) / 0.25))
     assert expected[42, 42, k_tie] and not expected[42, 42, k_tie + 1]
+
+
+def test_sparse_terrain_band_files_whole_bricks_as_the_dense_mask_does():
+    # Hills, an AGL floor and ceiling over them and obstacles in the band, on a grid of several
+    # build windows with partial bricks on its upper faces: most bricks lie wholly under the
+    # floor or over the ceiling (full) or wholly in the band (free).
+    rng = np.random.default_rng(11)
+    x = np.arange(0.0, 37.0, 3.0)
+    y = np.arange(0.0, 34.0, 3.0)
+    xx, yy = np.meshgrid(x, y)
+    heights = (2.0 + 1.5 * np.sin(xx / 4.0) * np.cos(yy / 5.0)
+               + 3.0 * np.exp(-((xx - 18.0) ** 2 + (yy - 15.0) ** 2) / 40.0)
+               + rng.uniform(-0.3, 0.3, xx.shape))
+    terrain = HeightField([0.0, 0.0], [3.0, 3.0], heights)
+    floor = HeightField([0.0, 0.0], [3.0, 3.0], heights + 3.0, label='floor')
+    ceiling = HeightField([0.0, 0.0], [3.0, 3.0], heights + 11.0, side='above',
+                          label='ceiling')
+    items = [terrain, floor, ceiling,
+             Sphere([10.0, 12.0, 9.0], 1.2), Sphere([30.0, 5.0, 14.0], 2.0),
+             Box([20.0, 20.0, 0.0], [23.0, 24.0, 12.0]),  # from the ground into the band
+             Box([2.0, 28.0, 9.0], [5.5, 30.0, 10.0]),
+             PointSet(rng.uniform([25.0, 25.0, 7.0], [32.0, 31.0, 11.0], (40, 3)))]
+    obstacles = ObstacleSet(items)
+    # The lattice ends inside the grid on the upper x and y faces: columns off it as well.
+    grid = VoxelGrid.from_bounds([-1.0, -1.0, -2.0], [38.1, 35.3, 22.0], 0.25)
+    assert all(n % BRICK for n in grid.shape) and min(grid.shape) > 64
+    gamma = 0.5
+    dense = blocked_mask(grid, obstacles, gamma, layout='dense')
+    sparse = blocked_mask(grid, obstacles, gamma, layout='sparse')
+    assert isinstance(sparse, SparseMask) and isinstance(dense, np.ndarray)
+    free, full, mixed = sparse.brick_counts()
+    assert full > 0.3 * len(sparse.table) and free > 0.2 * len(sparse.table) and mixed > 0
+    assert np.array_equal(sparse.to_dense(), dense)
+    # The same free, full and mixed bricks as filing the dense mask brick by brick.
+    again = SparseMask.from_dense(dense)
+    assert np.array_equal(np.minimum(again.table, 0), np.minimum(sparse.table, 0))
+    # The rule itself, on the nodes of the bricks filed full without their nodes being read,
+    # and on a sample of the others.
+    bricks = np.stack(np.unravel_index(np.flatnonzero(sparse.table == FULL), sparse.bricks),
+                      axis=-1)
+    corners = np.minimum(bricks[rng.choice(len(bricks), 40, replace=False)] * BRICK,
+                         np.asarray(grid.shape) - 1)
+    nodes = np.concatenate([corners, rng.integers(0, np.asarray(grid.shape), (4000, 3))])
+    distances = obstacles.distance(grid.index_to_world(nodes))
+    assert np.array_equal(sparse.blocked_at(nodes), distances <= gamma)
 
 
 def test_reinflated_tiles_keep_the_terrain():

@@ -17,7 +17,9 @@ grid:
 - a height field (terrain, ground, an AGL floor or ceiling) blocks, in each grid column, the
   nodes below (above) one limit, found by bisection on the terrain's own distance function
   (:func:`~uav_global_planner.core.terrain.column_limits`): its solid is closed downwards
-  (upwards), so the distance is monotone along a column.
+  (upwards), so the distance is monotone along a column. In the block-sparse layout the least
+  and greatest limits of each 8 x 8 column of bricks file whole bricks full, or leave them
+  free, without writing their nodes; only the bricks the limits cross are written.
 
 The passes are compiled loops (numba, see :mod:`uav_global_planner.core.jit`) that write straight
 into the mask, without temporaries. Without numba the same rule runs as vectorised numpy passes
@@ -26,7 +28,7 @@ over the same sub-blocks. Both evaluate the distance with one floating-point for
 squared and summed x, y, z in that order, then the square root), so they give identical masks
 to the last bit, ties at exactly gamma included.
 
-One module, though long (about 900 lines): every stamping kernel (spheres, boxes, points,
+One module, though long (about 1200 lines): every stamping kernel (spheres, boxes, points,
 zones) must use the one floating-point formula and the one window scheme of both layouts, so
 they stay side by side.
 """
@@ -47,7 +49,8 @@ from uav_global_planner.core.errors import InvalidInputError
 from uav_global_planner.core.grid import VoxelGrid
 from uav_global_planner.core.jit import JIT_ENABLED, njit
 from uav_global_planner.core.obstacles import box_distance, ObstacleSet, sphere_distance
-from uav_global_planner.core.sparse_grid import (BRICK, choose_layout, SparseBuilder,
+from uav_global_planner.core.sparse_grid import (BRICK, BRICK_BITS, choose_layout, FROM_NODES,
+                                                 KNOWN_FREE, KNOWN_FULL, SparseBuilder,
                                                  SparseMask)
 from uav_global_planner.core.spatial_index import (_column_part, _finish, shape_bounds,
                                                    stamp_shapes)
@@ -252,7 +255,10 @@ def _sparse_mask(grid: VoxelGrid, obstacles: ObstacleSet, gamma: float,
     with an obstacle are stamped, into one reused dense scratch block, by the kernels of the
     dense layout with the window's origin: node coordinates are formed from the global indices,
     so every node's test is the dense layout's, to the bit. Time and memory follow the
-    obstacles' reach; windows no obstacle reaches cost nothing.
+    obstacles' reach; windows no obstacle reaches cost nothing. Height fields file the bricks
+    wholly inside or outside their blocked range from their column limits alone
+    (:meth:`_SparseWork._build_window`), so their cost follows the surfaces, not the volume
+    under them.
     """
     if not JIT_ENABLED:
         builder = SparseBuilder(grid.shape)
@@ -362,6 +368,11 @@ class _SparseWork:
         self.terrain = [(column_limits(field, self.origin, self.delta, self.first, self.last,
                                        gamma, checkpoint), field.side == 'below')
                         for field in obstacles.height_fields]
+        #: Per height field, on a whole-grid box (a full build): the least and the greatest
+        #: column limit of each brick column (8 x 8 grid columns).
+        whole = bool(np.all(self.first == 0) and np.all(self.last == self.shape - 1))
+        self.brick_limits = [_brick_column_limits(limits) for limits, _ in self.terrain
+                             if whole]
         reached = np.any(np.stack([np.diff(start) for start, _ in self.lists]), axis=0)
         for limits, below in self.terrain:
             reached |= _terrain_windows(limits, below, self.first, self.last, self.windows)
@@ -385,21 +396,59 @@ class _SparseWork:
         def run(window: int) -> None:
             if not hasattr(scratches, 'block'):
                 scratches.block = self._scratch()
-            block, base = self._stamp_window(int(window), scratches.block, builder, clear)
+            if clear is None:
+                block, base, states = self._build_window(int(window), scratches.block)
+            else:
+                block, base = self._stamp_window(int(window), scratches.block, builder, clear)
+                states = None
             with lock:
-                builder.pack(block, base)
+                builder.pack(block, base, states)
 
         _run_tasks(list(windows), run, checkpoint, workers)
 
     def _scratch(self) -> np.ndarray:
         return np.zeros(int(np.prod(np.minimum(self.shape, _WINDOW))), dtype=np.bool_)
 
-    def _stamp_window(self, window: int, scratch: np.ndarray, builder: SparseBuilder, clear):
-        """One window stamped into ``scratch``: the dense block and its first node."""
-        obstacles = self.obstacles
-        gamma = self.gamma
+    def _build_window(self, window: int, scratch: np.ndarray):
+        """One window of a full build (the box [first, last] is the whole grid): the dense
+        block, its first node and the states of its bricks
+        (:meth:`~uav_global_planner.core.sparse_grid.SparseBuilder.pack`).
+
+        The height fields decide most bricks from their brick columns' least and greatest
+        limits alone: a brick under (over) every limit of a side-``'below'`` (``'above'``)
+        field is full, one that no field's blocked nodes reach stays free unless another
+        obstacle's index range meets it (all of them when points reach the window). Only the
+        remaining bricks are written, by the very passes of :meth:`_stamp_window`, and read.
+        """
+        base, extent = self._window_box(window)
+        block = scratch[:int(np.prod(extent))].reshape(extent)
+        states = np.full(tuple(-(-np.asarray(extent) // BRICK)), KNOWN_FREE, dtype=np.int8)
+        for (_, below), (least, greatest) in zip(self.terrain, self.brick_limits):
+            _terrain_states(states, base, self.shape[2], least, greatest, below)
+        items = [found[start[window]:start[window + 1]] for start, found in self.lists]
+        if len(items[3]):
+            states[states == KNOWN_FREE] = FROM_NODES
+        for ranges, chosen in zip((self.zone_ranges, self.sphere_ranges, self.box_ranges),
+                                  items[:3]):
+            if len(chosen):
+                _reach_states(states, block, base, ranges, chosen)
+        if not np.any(states == FROM_NODES):
+            return block, base, states
+        block[...] = False
+        for limits, below in self.terrain:
+            _fill_brick_columns(block, base, states, self.first, limits, below)
+        self._stamp_items(block, base, items)
+        return block, base, states
+
+    def _window_box(self, window: int):
+        """First node and node counts of a window."""
         base = np.asarray(np.unravel_index(window, tuple(self.windows)), np.int64) * _WINDOW
         extent = tuple(int(e) for e in np.minimum(self.shape - base, _WINDOW))
+        return base, extent
+
+    def _stamp_window(self, window: int, scratch: np.ndarray, builder: SparseBuilder, clear):
+        """One window stamped into ``scratch``: the dense block and its first node."""
+        base, extent = self._window_box(window)
         block = scratch[:int(np.prod(extent))].reshape(extent)
         if clear is None:
             block[...] = False
@@ -410,6 +459,14 @@ class _SparseWork:
         items = [found[start[window]:start[window + 1]] for start, found in self.lists]
         for limits, below in self.terrain:
             _fill_columns(block, base, self.first, self.last, limits, below)
+        self._stamp_items(block, base, items)
+        return block, base
+
+    def _stamp_items(self, block: np.ndarray, base: np.ndarray, items) -> None:
+        """Stamp the zones, spheres, boxes and points listed in ``items`` (one array of item
+        numbers each) into the window ``block`` of the grid from node ``base`` on."""
+        obstacles = self.obstacles
+        gamma = self.gamma
         if len(items[0]):
             _stamp_shapes_in(block, base, self.origin, self.delta, self.zone_ranges, self.rows,
                              items[0], obstacles.shape_kind, obstacles.shape_params,
@@ -422,10 +479,9 @@ class _SparseWork:
                             self.mins, self.maxs, gamma)
         if len(items[3]):
             lo = np.maximum(base, self.first)
-            hi = np.minimum(base + np.asarray(extent) - 1, self.last)
+            hi = np.minimum(base + np.asarray(block.shape) - 1, self.last)
             if np.all(lo <= hi):
                 _points_in_box(block, base, self.grid, self.bins, items[3], lo, hi, gamma)
-        return block, base
 
 
 def _mark_terrain(grid: VoxelGrid, obstacles: ObstacleSet, gamma: float, block: np.ndarray,
@@ -470,6 +526,83 @@ def _fill_columns(block, base, first, last, limits, below):  # pragma: no cover 
             b = min(limit - 1, k1) if below else k1
             for k in range(a, b + 1):
                 block[i - base[0], j - base[1], k - base[2]] = True
+
+
+def _brick_column_limits(limits: np.ndarray):
+    """The least and the greatest of the column limits of each brick column (the columns
+    ``[8 a, 8 a + 8) x [8 b, 8 b + 8)`` of ``limits``, clipped to it)."""
+    pad = [(0, -n % BRICK) for n in limits.shape]
+    full = np.pad(limits, pad, mode='edge')
+    bricks = full.reshape(full.shape[0] // BRICK, BRICK, full.shape[1] // BRICK, BRICK)
+    return (np.ascontiguousarray(bricks.min(axis=(1, 3))),
+            np.ascontiguousarray(bricks.max(axis=(1, 3))))
+
+
+@njit
+def _terrain_states(states, base, nz, least, greatest, below):  # pragma: no cover - compiled
+    """Fold one height field into the brick states of the window from node ``base`` on, from
+    its brick columns' least and greatest limits (:func:`_brick_column_limits` of a whole-grid
+    box; ``nz`` nodes along z): a brick all of whose nodes the field blocks becomes
+    :data:`KNOWN_FULL`, one some of whose nodes it blocks :data:`FROM_NODES` unless known full.
+    """
+    a0 = base[0] >> BRICK_BITS
+    b0 = base[1] >> BRICK_BITS
+    for a in range(states.shape[0]):
+        for b in range(states.shape[1]):
+            low = least[a0 + a, b0 + b]
+            high = greatest[a0 + a, b0 + b]
+            for c in range(states.shape[2]):
+                k0 = base[2] + c * BRICK
+                k1 = min(k0 + BRICK - 1, nz - 1)
+                if below:  # nodes k < limit blocked
+                    full = low > k1
+                    some = high > k0
+                else:  # nodes k >= limit blocked
+                    full = high <= k0
+                    some = low <= k1
+                if full:
+                    states[a, b, c] = KNOWN_FULL
+                elif some and states[a, b, c] == KNOWN_FREE:
+                    states[a, b, c] = FROM_NODES
+
+
+@njit
+def _reach_states(states, block, base, ranges, items):  # pragma: no cover - compiled
+    """Mark :data:`FROM_NODES` the bricks of the window ``block`` (from node ``base`` on) that
+    the index ranges ``ranges[items]`` meet, unless known full."""
+    for n in range(items.shape[0]):
+        i0, i1, j0, j1, k0, k1 = _window(ranges, items[n], base, block)
+        if i0 > i1 or j0 > j1 or k0 > k1:
+            continue
+        for a in range((i0 - base[0]) >> BRICK_BITS, ((i1 - base[0]) >> BRICK_BITS) + 1):
+            for b in range((j0 - base[1]) >> BRICK_BITS, ((j1 - base[1]) >> BRICK_BITS) + 1):
+                for c in range((k0 - base[2]) >> BRICK_BITS,
+                               ((k1 - base[2]) >> BRICK_BITS) + 1):
+                    if states[a, b, c] == KNOWN_FREE:
+                        states[a, b, c] = FROM_NODES
+
+
+@njit
+def _fill_brick_columns(block, base, states, first, limits,
+                        below):  # pragma: no cover - compiled
+    """:func:`_fill_columns` on the :data:`FROM_NODES` bricks of the window ``block`` (from
+    node ``base`` on) only; the columns' limits are those of the box from node ``first`` on,
+    which holds the window."""
+    wi, wj, wk = block.shape
+    for a in range(states.shape[0]):
+        for b in range(states.shape[1]):
+            for c in range(states.shape[2]):
+                if states[a, b, c] != FROM_NODES:
+                    continue
+                k0 = c * BRICK
+                k1 = min(k0 + BRICK, wk) - 1
+                for i in range(a * BRICK, min(a * BRICK + BRICK, wi)):
+                    for j in range(b * BRICK, min(b * BRICK + BRICK, wj)):
+                        limit = limits[base[0] + i - first[0], base[1] + j - first[1]] - base[2]
+                        lo = k0 if below else max(limit, k0)
+                        hi = min(limit - 1, k1) if below else k1
+                        for k in range(lo, hi + 1):
+                            block[i, j, k] = True
 
 
 def _terrain_windows(limits: np.ndarray, below: bool, first: np.ndarray, last: np.ndarray,

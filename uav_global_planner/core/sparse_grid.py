@@ -39,6 +39,14 @@ FREE = -1
 #: Table code of a brick whose nodes are all blocked.
 FULL = -2
 
+#: What a build knows of a brick of a window before looking at its nodes
+#: (:meth:`SparseBuilder.pack`): no node of it is blocked, ...
+KNOWN_FREE = 0
+#: ... its nodes decide (the window's nodes are read), ...
+FROM_NODES = 1
+#: ... or every node of it is blocked.
+KNOWN_FULL = 2
+
 #: From this many nodes up, :func:`choose_layout` picks the block-sparse layout.
 SPARSE_MIN_NODES = 16_000_000
 
@@ -212,16 +220,36 @@ class SparseBuilder:
         self._used = 0
         self._shape = np.asarray(self.shape, dtype=np.int64)
 
-    def pack(self, window: npt.NDArray[np.bool_], base: npt.NDArray[np.int64]) -> None:
-        """File the bricks of ``window``, the nodes from ``base`` (multiples of 8) on."""
+    def pack(self, window: npt.NDArray[np.bool_], base: npt.NDArray[np.int64],
+             states: Optional[npt.NDArray[np.int8]] = None) -> None:
+        """File the bricks of ``window``, the nodes from ``base`` (multiples of 8) on.
+
+        Parameters
+        ----------
+        window : numpy.ndarray of bool
+            The nodes of the window.
+        base : numpy.ndarray of int64, shape (3,)
+            Its first node.
+        states : numpy.ndarray of int8, shape (bricks of the window per axis), optional
+            What is known of each brick of the window: :data:`KNOWN_FREE` and
+            :data:`KNOWN_FULL` bricks are filed as such without reading their nodes (which
+            ``window`` then need not hold), :data:`FROM_NODES` bricks from their nodes. Without
+            it every brick is filed from its nodes.
+        """
         spans = -(-np.asarray(window.shape, dtype=np.int64) // BRICK)
-        need = self._used + int(np.prod(spans))
+        if states is None:
+            states = np.full(tuple(int(n) for n in spans), FROM_NODES, dtype=np.int8)
+        if states.shape != tuple(spans):
+            raise InvalidInputError(f'states must have the shape {tuple(spans.tolist())} of the '
+                                    f'bricks of the window, got {states.shape}')
+        need = self._used + int(np.count_nonzero(states == FROM_NODES))
         if need > len(self._pool):
             grown = np.zeros((max(need, 2 * len(self._pool)), BRICK_NODES), dtype=np.bool_)
             grown[:self._used] = self._pool[:self._used]
             self._pool = grown
         self._used = int(_pack(window, np.asarray(base, dtype=np.int64), self._shape,
-                               self.bricks, self._table, self._pool, self._used))
+                               self.bricks, self._table, self._pool, self._used,
+                               np.ascontiguousarray(states, dtype=np.int8)))
 
     @classmethod
     def editing(cls, mask: SparseMask, capacity: int) -> 'SparseBuilder':
@@ -369,13 +397,23 @@ def _unpack_window(table, pool, bricks, base, window):  # pragma: no cover - com
 
 
 @njit
-def _pack(window, base, shape, bricks, table, pool, used):  # pragma: no cover - compiled
-    """File the bricks of a dense window (origin ``base``, brick-aligned); returns the pool rows
-    in use. The pool has room for every brick of the window."""
+def _pack(window, base, shape, bricks, table, pool, used,
+          states):  # pragma: no cover - compiled
+    """File the bricks of a dense window (origin ``base``, brick-aligned) by their ``states``
+    (:meth:`SparseBuilder.pack`); returns the pool rows in use. The pool has room for every
+    brick filed from its nodes."""
     wi, wj, wk = window.shape
     for a0 in range(0, wi, BRICK):
         for b0 in range(0, wj, BRICK):
             for c0 in range(0, wk, BRICK):
+                brick = _brick_of(bricks, base[0] + a0, base[1] + b0, base[2] + c0)
+                state = states[a0 >> BRICK_BITS, b0 >> BRICK_BITS, c0 >> BRICK_BITS]
+                if state == KNOWN_FREE:
+                    table[brick] = FREE
+                    continue
+                if state == KNOWN_FULL:
+                    table[brick] = FULL
+                    continue
                 si = min(BRICK, wi - a0)
                 sj = min(BRICK, wj - b0)
                 sk = min(BRICK, wk - c0)
@@ -385,7 +423,6 @@ def _pack(window, base, shape, bricks, table, pool, used):  # pragma: no cover -
                         for c in range(sk):
                             if window[a0 + a, b0 + b, c0 + c]:
                                 count += 1
-                brick = _brick_of(bricks, base[0] + a0, base[1] + b0, base[2] + c0)
                 if count == 0:
                     table[brick] = FREE
                 elif count == si * sj * sk:
