@@ -323,6 +323,31 @@ def test_new_goal_preempts_the_running_one(ros):
     assert np.linalg.norm(path_points(result.path)[-1] - near) <= TOL
 
 
+def test_a_map_that_blocks_the_path_while_it_is_planned_refuses_it(ros):
+    """A wall across the whole workspace lands while the long node plans: the path planned on
+    the map before it crosses the wall, so the client gets no path and nothing is published."""
+    long, planner = ros['long'], ros['planners']['long']
+    mark, plans = planner.diagnostics.mark(), planner.plans.mark()
+    handle = long.send(long.to_pose, ComputePathToPose.Goal(goal=pose_msg([48.0, 45.0, 5.0])))
+    wait_until_planning(ros, mark)
+    # Every path from x = 1 m to x = 48 m crosses x = 20 m within the bounds (0-50 x 0-10 m).
+    wall = [20.0, 25.0, 5.0], [0.5, 50.0, 10.0]
+    planner.publish('obstacles', marker_array(marker('wall', 0, Marker.CUBE, *wall)))
+    try:
+        status, result = long.result(handle)
+        assert status == GoalStatus.STATUS_ABORTED, result.error_msg
+        assert result.error_code == ComputePathToPose.Result.NO_VALID_PATH, result.error_msg
+        assert 'arrived while planning' in result.error_msg, result.error_msg
+        assert len(result.path.poses) == 0
+        refused = planner.wait_diag(mark, 'plan', check=lambda v: v['reason'] == (
+            'compute_path_to_pose request'))
+        assert refused['status'] == 'no_valid_path', refused
+        assert planner.plans.mark() == plans, 'a plan crossing the wall was published'
+    finally:
+        planner.publish('obstacles', marker_array(
+            marker('wall', 0, Marker.CUBE, *wall, action=Marker.DELETE)))
+
+
 # ---------------------------------------------------------------- ComputePathThroughPoses
 
 VIA_POINTS = np.array([[-5.0, -6.0, 3.0], [-5.0, 4.0, 8.0], [2.0, 8.0, 11.0], [8.0, -6.0, 11.0],

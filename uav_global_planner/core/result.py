@@ -349,6 +349,16 @@ class PlanResult:
     handover_accel_error: float = 0.0
     unknown_length_m: float = float('nan')
 
+    def refused(self, status: PlanStatus, message: str) -> 'PlanResult':
+        """This request as a failure with ``status`` and ``message``: what a plan becomes when
+        a later check (a newer map) refuses it; no path, the request's figures kept."""
+        return PlanResult(status=status, message=message, algorithm=self.algorithm,
+                          start=self.start, goal=self.goal, resolution=self.resolution,
+                          safety_margin=self.safety_margin,
+                          adaptive_threshold=self.adaptive_threshold,
+                          planning_margin=self.planning_margin,
+                          expanded_nodes=self.expanded_nodes, total_time_s=self.total_time_s)
+
     @property
     def ok(self) -> bool:
         """True when a safe path was found."""

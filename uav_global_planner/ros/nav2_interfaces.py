@@ -123,9 +123,14 @@ class PlanHost(Protocol):
         the planner config), ``start`` [m], ``start_source`` and ``obstacles_version``."""
 
     def publish_plan(self, result: PlanResult, frame_id: str, stamp_ns: int,
-                     orientation: Sequence[float]) -> bytes:
+                     orientation: Sequence[float]) -> Optional[bytes]:
         """On the worker: publish a successful plan on ``plan``, ``unsmoothed_plan`` and
-        ``trajectory`` as the node's own plans are; return the serialised ``plan`` message."""
+        ``trajectory`` as the node's own plans are; return the serialised ``plan`` message, or
+        None when a newer map withdrew it at once."""
+
+    def newer_map_blocks(self, result: PlanResult, snapshot: Any) -> str:
+        """On the worker: why ``result``, planned on the map of ``snapshot``, must not be
+        handed out (a map that arrived meanwhile makes it collide); '' when it may."""
 
     def publish_diagnostics(self, stamp_ns: int, level: bytes, message: str,
                             values: Mapping[str, object]) -> None:
@@ -505,12 +510,23 @@ class PlannerInterfaces:
         frame = snapshot.settings.frame_id
         path = None
         if result.ok:
-            orientation = tuple(float(v) for v in request.orientation)
-            if request.publish:
-                data = self._host.publish_plan(result, frame, stamp_ns, orientation)
+            # Certified against the map it was planned on; a client gets it only when the
+            # newest map keeps it clear too, and (published) while it is still in force.
+            refusal = self._host.newer_map_blocks(result, snapshot)
+            data: Optional[bytes] = None
+            if not refusal:
+                orientation = tuple(float(v) for v in request.orientation)
+                if request.publish:
+                    data = self._host.publish_plan(result, frame, stamp_ns, orientation)
+                    if data is None:
+                        refusal = ('the plan was withdrawn as soon as it was published: a map '
+                                   'that arrived meanwhile makes it collide; ask again')
+                else:
+                    data = startup_plan_writer().plan_path(result, frame, stamp_ns, orientation)
+            if data is None:
+                result = result.refused(PlanStatus.NO_VALID_PATH, refusal)
             else:
-                data = startup_plan_writer().plan_path(result, frame, stamp_ns, orientation)
-            path = deserialize_message(data, Path)
+                path = deserialize_message(data, Path)
         message = result.message
         failed_leg = getattr(result, 'failed_leg', -1)
         if failed_leg >= 0 and 'leg' not in message:

@@ -63,19 +63,19 @@ class PlanInForce:
         return plan
 
     def publish_plan(self, result: PlanResult, frame_id: str, stamp_ns: int,
-                     orientation: Tuple[float, ...]) -> bytes:
+                     orientation: Tuple[float, ...]) -> Optional[bytes]:
         """Worker only: publish and latch a successful plan on ``plan``, ``unsmoothed_plan`` and
-        ``trajectory``; return the serialised ``plan`` message. The plan is the plan in force
-        from then on: re-checked against every new map, and against a map newer than the
-        planner's right away."""
+        ``trajectory``; return the serialised ``plan`` message, or None when a map newer than
+        the planner's made it collide and it was withdrawn at once (nothing to hand a client).
+        The plan is the plan in force from then on: re-checked against every new map."""
         applied = self._applied_map.version if self._applied_map is not None else -1
         with self._publish_lock:
             plan = self._latch(result, frame_id, stamp_ns, orientation,
                                StartSource.REQUEST, applied)
             with self._wake:
                 newest = self._map
-            if newest.version > applied:
-                self._recheck_in_force(newest)
+            if newest.version > applied and self._recheck_in_force(newest) is not None:
+                return None
         return plan
 
     def _recheck_in_force(self, live: LiveMap) -> Optional[InForce]:

@@ -157,6 +157,22 @@ class PlanningWorker:
             return None
         return 'obstacles changed and the current path is no longer clear'
 
+    def newer_map_blocks(self, result: PlanResult, snap: Snapshot) -> str:
+        """Why ``result``, planned on the map of ``snap``, must not be handed out: a map that
+        arrived meanwhile makes its curve ahead of the vehicle collide ('' when the newest map
+        is the one it was planned on, or keeps it clear). Worker only."""
+        with self._wake:
+            newest = self._map
+        if newest.version == snap.obstacles_version:
+            return ''
+        verdict = self._verdict_ahead(result, snap, newest.obstacles)
+        if verdict.clear:
+            return ''
+        where = ('' if verdict.blocked_at is None
+                 else f' near {np.round(verdict.blocked_at, 3).tolist()}')
+        return (f'a map that arrived while planning (version {newest.version}; planned on '
+                f'{snap.obstacles_version}) makes the path collide{where}; ask again')
+
     def _clear_ahead(self, result: PlanResult, snap: Snapshot,
                      obstacles: Optional[Any] = None) -> bool:
         """True when the curve of ``result`` still ahead of the vehicle is certified to keep
