@@ -234,6 +234,24 @@ def test_use_start_plans_from_the_given_start(paper):
     assert_safe_path(result.path, start, GOAL)
 
 
+def test_a_start_a_little_below_the_floor_is_lifted_as_the_node_does(ros, paper):
+    """The node's own start admission serves Nav2 too: 0.2 m below the floor (within
+    start_tolerance 0.5 m) the path starts on the floor, and the diagnostics say so."""
+    planner = ros['planners']['paper']
+    mark = planner.diagnostics.mark()
+    landed = np.array([-6.0, -6.0, -0.2])
+    status, result = paper.path_to(GOAL, start=pose_msg(landed), use_start=True)
+    assert status == GoalStatus.STATUS_SUCCEEDED, result.error_msg
+    assert_safe_path(result.path, [-6.0, -6.0, 0.0], GOAL)
+    values = planner.wait_diag(mark, 'plan', check=lambda v: v['reason'] == (
+        'compute_path_to_pose request'))
+    assert 'below the floor' in values['note'] and 'lifted' in values['note'], values
+    # Beyond the tolerance the start is refused, with the fix.
+    status, result = paper.path_to(GOAL, start=pose_msg([-6.0, -6.0, -1.0]), use_start=True)
+    assert result.error_code == ComputePathToPose.Result.START_OUTSIDE_MAP, result.error_msg
+    assert 'start_tolerance' in result.error_msg, result.error_msg
+
+
 def test_planner_id_selects_the_algorithm(ros, paper):
     planner = ros['planners']['paper']
     mark = planner.diagnostics.mark()

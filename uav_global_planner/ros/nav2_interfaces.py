@@ -71,7 +71,7 @@ from rclpy.task import Future
 from uav_global_planner.core.config import ALGORITHMS
 from uav_global_planner.core.errors import InvalidInputError
 from uav_global_planner.core.result import PlanResult
-from uav_global_planner.core.start_admission import nearest_free_node
+from uav_global_planner.core.start_admission import admit, explain, nearest_free_node, START
 from uav_global_planner.core.status import (NAV2_CODE_BY_STATUS, NAV2_INVALID_PLANNER,
                                             NAV2_NONE, NAV2_UNKNOWN, PlanStatus)
 from uav_global_planner.ros import conversions as conv
@@ -482,6 +482,11 @@ class PlannerInterfaces:
             start, source = request.start, StartSource.REQUEST
         else:
             start, source = snapshot.start, snapshot.start_source
+        # The node's own admission: a landed vehicle's start is lifted off the ground, one a
+        # little inside the margin moved, by at most start_tolerance.
+        admitted = admit(planner, start, START, snapshot.settings.start_tolerance,
+                         'the start_tolerance parameter')
+        start = admitted.point
         started = time.perf_counter()
         settlement: Optional[Settlement] = None
         for attempt in range(MAX_TAKEOVER_REPLANS + 1):
@@ -499,6 +504,9 @@ class PlannerInterfaces:
                     self._report_retake(request, settlement)
                     continue
             break
+        if takeover is None or not takeover.moving:
+            result = explain(result, (admitted,))
+            takeover_note = '; '.join(n for n in (admitted.note, takeover_note) if n)
         goal_used = request.goal
         note = takeover_note
         if result.status is PlanStatus.GOAL_OCCUPIED and request.tolerance > 0.0:
