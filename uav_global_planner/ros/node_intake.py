@@ -93,7 +93,9 @@ class MapIntake:
                     return
                 self._log.error(f'map intake failed: {error!r}\n{traceback.format_exc()}')
             finally:
-                if airspace is not None:
+                if airspace is not None or reconfigure:
+                    # The step built the map from the settings and geofence in force, so
+                    # every shapes request up to this serial is in it.
                     with self._wake:
                         self._geofence_applied = max(self._geofence_applied, airspace_serial)
                         self._wake.notify_all()

@@ -18,6 +18,7 @@ from uav_global_planner.core.errors import InvalidInputError
 from uav_global_planner.ros import conversions as conv
 from uav_global_planner.ros.geofence_source import (airspace_from_values, describe,
                                                     geofence_key, GEOFENCE_PARAMETERS)
+from uav_global_planner.ros.ground_source import ground_key
 from uav_global_planner.ros.mission_service import ORIGIN_PARAMETER
 from uav_global_planner.ros.node_state import SourceState
 from uav_global_planner.ros.parameters import (NodeSettings, plain as _plain,
@@ -127,13 +128,19 @@ class ParameterHandling:
         self._airspace, self._geofence_key = airspace, key
         self._log.info(f'{describe(airspace, self._settings.geofence_file)}: in force from '
                        'the next plan')
-        with self._wake:
-            # The worker plans nothing until the map holds this geofence.
-            self._geofence_requested += 1
-            serial = self._geofence_requested
+        # The worker plans nothing until the map holds this geofence.
+        serial = self._request_shapes()
         with self._intake_cv:
-            self._inbox.airspace, self._inbox.airspace_serial = airspace, serial
+            self._inbox.airspace = airspace
+            self._inbox.airspace_serial = max(self._inbox.airspace_serial, serial)
             self._intake_cv.notify_all()
+
+    def _request_shapes(self) -> int:
+        """A new serial of the map's own shapes (geofence, ground, band): the worker takes no
+        snapshot until the intake has built a map with them (``_geofence_applied``)."""
+        with self._wake:
+            self._geofence_requested += 1
+            return self._geofence_requested
 
     def _apply_parameters(self, parameters: List[Parameter]) -> None:
         """Post-set callback: the new settings take effect at the next plan; a running plan
@@ -143,14 +150,21 @@ class ParameterHandling:
         if not changed:
             if geofence_changed:  # geodetic_origin alone
                 if self._follow_terrain(self._settings):
+                    serial = self._request_shapes()
                     with self._intake_cv:  # the ground shapes follow the terrain
                         self._inbox.reconfigure = True
+                        self._inbox.airspace_serial = max(self._inbox.airspace_serial, serial)
                         self._intake_cv.notify_all()
                 self._apply_geofence()
             return
         self._param_values.update(changed)
         settings = settings_from_parameters(self._param_values, self._map_margin_m)
+        ground_before = ground_key(self._settings.config, getattr(self, '_terrain_state', None))
         self._follow_terrain(settings)
+        # New ground or band shapes: the worker plans nothing until the map holds them, so no
+        # plan is made with the new settings against the old band.
+        serial = (self._request_shapes() if ground_key(
+            settings.config, getattr(self, '_terrain_state', None)) != ground_before else 0)
         frame_changed = False
         with self._wake:
             previous = self._settings
@@ -171,6 +185,7 @@ class ParameterHandling:
         with self._intake_cv:
             self._inbox.reconfigure = True
             self._inbox.frame_reset = self._inbox.frame_reset or frame_changed
+            self._inbox.airspace_serial = max(self._inbox.airspace_serial, serial)
             self._intake_cv.notify_all()
         if frame_changed:
             self._takeover.forget_odometry()
