@@ -10,6 +10,7 @@ requests on it too (:meth:`PlanningWorker.submit`).
 """
 
 from dataclasses import replace
+import time
 import traceback
 from typing import Any, Callable, Dict, Optional, Tuple
 
@@ -33,6 +34,10 @@ from uav_global_planner.ros.takeover import (FOLLOW_DISTANCE_M, Settlement, STAR
 #: computed; after that many the plan is published anyway (with a note), so a slow plan behind
 #: a fast vehicle still gives one.
 _MAX_DRIFT_REPLANS = 3
+#: A newer goal cancels a running plan only once it has run this long [s]: a plan of tens of
+#: milliseconds ends and is published, so goals streamed faster than plans take still get
+#: plans (each plan then takes the newest goal); a long plan gives way at once after it.
+PREEMPT_GRACE_S = 0.25
 
 #: Outcomes that may change when the obstacles change, so a failed goal is retried then.
 _RETRY_ON_OBSTACLES = (PlanStatus.NO_VALID_PATH, PlanStatus.TIMEOUT, PlanStatus.START_OCCUPIED,
@@ -190,13 +195,18 @@ class PlanningWorker:
         return verdict
 
     def _cancel_test(self, goal: Goal, settings: NodeSettings) -> Callable[[], bool]:
-        """A cancel test for the plan of ``goal``: true once a newer goal, changed settings or
-        shutdown makes the plan pointless (checked every few milliseconds by the planner)."""
+        """A cancel test for the plan of ``goal``: true once a newer goal (after
+        :data:`PREEMPT_GRACE_S` of planning), changed settings or shutdown makes the plan
+        pointless (checked every few milliseconds by the planner)."""
+        began = time.monotonic()
+
         def cancelled() -> bool:
             with self._wake:
-                return (self._stopping or self._goal is None
-                        or self._goal.serial != goal.serial
-                        or (self._settings_changed and self._settings.config != settings.config))
+                if (self._stopping or self._goal is None
+                        or (self._settings_changed and self._settings.config != settings.config)):
+                    return True
+                newer = self._goal.serial != goal.serial
+            return newer and time.monotonic() - began >= PREEMPT_GRACE_S
         return cancelled
 
     def _report_progress(self, goal: Goal, settings: NodeSettings, stage: PlanStage,
