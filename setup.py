@@ -37,7 +37,11 @@ setup(
                     # The time-optimal reference of benchmarks/bench_timing.py.
                     'bench': ['copp-py'],
                     # Closed-loop flights in RotorPy (uav_global_planner_tools/flight).
-                    'flight': ['rotorpy']},
+                    'flight': ['rotorpy'],
+                    # A fleet's missions planned in parallel on Ray (uav-plan fleet).
+                    'fleet': ['ray'],
+                    # The documentation in docs/ (Sphinx with MyST).
+                    'docs': ['sphinx', 'myst-parser', 'furo']},
     # The shipped scenes are read as files (importlib.resources paths), so never as a zip.
     zip_safe=False,
     maintainer='uav_global_planner maintainers',
