@@ -336,6 +336,31 @@ def diagnostics_of(node_fqn: str, msg: DiagnosticArray) -> Optional[Dict[str, st
     return None
 
 
+def plans_after_withdrawal(plans: 'Recorder', after: int, withdrawn: Mapping[str, Any],
+                           keeps_clear: Callable[[np.ndarray], bool]) -> List[PathMsg]:
+    """Check the ``plan`` messages (index >= ``after``) that followed an obstacle landing on
+    the plan in force, whose ``plan_withdrawn`` diagnostics are ``withdrawn``; return them.
+
+    ``plan`` is latched state of depth 1 (:data:`LATCHED_QOS`): a subscription that keeps one
+    message, as a controller's does, may get the replacement in place of the empty plan that
+    withdrew the colliding one when the replacement follows within milliseconds (writer and
+    reader each keep only the newest). So the order of messages is not the property; this is:
+    every message after the drop is either the empty withdrawal (stamped as its diagnostics) or
+    a plan stamped after it whose points satisfy ``keeps_clear``; the withdrawn plan never
+    comes back.
+    """
+    withdrawn_stamp = int(withdrawn['_stamp'])
+    messages = plans.messages[after:]
+    for message in messages:
+        stamp = conv.time_to_ns(message.header.stamp)
+        if len(message.poses) == 0:
+            assert stamp == withdrawn_stamp, 'an empty plan that is not the withdrawal'
+        else:
+            assert stamp > withdrawn_stamp, 'a plan from before the withdrawal was published'
+            assert keeps_clear(conv.path_to_points(message)), 'a colliding plan was published'
+    return messages
+
+
 def min_clearance(points: np.ndarray, obstacles, spacing_m: float = 0.01) -> float:
     """Smallest distance [m] from the polyline through ``points`` to the obstacles."""
     dense = densify(np.asarray(points, dtype=np.float64).reshape(-1, 3), spacing_m)

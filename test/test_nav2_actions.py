@@ -341,29 +341,56 @@ def test_new_goal_preempts_the_running_one(ros):
     assert np.linalg.norm(path_points(result.path)[-1] - near) <= TOL
 
 
-def test_a_map_that_blocks_the_path_while_it_is_planned_refuses_it(ros):
+#: The wall race, per interface: the request's kind (its diagnostics' reason) and whether it
+#: publishes the plan it answers with.
+RACED_INTERFACES = {'compute_path_to_pose': True, 'compute_path_through_poses': True,
+                    'get_plan': False}
+
+
+@pytest.mark.parametrize('kind', list(RACED_INTERFACES))
+def test_a_map_that_blocks_the_path_while_it_is_planned_refuses_it(ros, kind):
     """A wall across the whole workspace lands while the long node plans: the path planned on
-    the map before it crosses the wall, so the client gets no path and nothing is published."""
+    the map before it crosses the wall, so the client gets no path and nothing is published,
+    through every interface (the node's one release gate, PlanInForce.release)."""
     long, planner = ros['long'], ros['planners']['long']
     mark, plans = planner.diagnostics.mark(), planner.plans.mark()
-    handle = long.send(long.to_pose, ComputePathToPose.Goal(goal=pose_msg([48.0, 45.0, 5.0])))
-    wait_until_planning(ros, mark)
+    goal = pose_msg([48.0, 45.0, 5.0])
+    if kind == 'compute_path_to_pose':
+        request = long.calls(lambda: long.to_pose.send_goal_async(
+            ComputePathToPose.Goal(goal=goal)))
+    elif kind == 'compute_path_through_poses':
+        request = long.calls(lambda: long.through.send_goal_async(ComputePathThroughPoses.Goal(
+            goals=[pose_msg([30.0, 5.0, 5.0]), goal])))
+    else:
+        request = long.get_plan_client.call_async(GetPlan.Request(goal=goal))
+    planner.wait_diag(mark, 'progress', 60.0, check=lambda v: v.get('reason') == f'{kind} request')
     # Every path from x = 1 m to x = 48 m crosses x = 20 m within the bounds (0-50 x 0-10 m).
     wall = [20.0, 25.0, 5.0], [0.5, 50.0, 10.0]
     planner.publish('obstacles', marker_array(marker('wall', 0, Marker.CUBE, *wall)))
     try:
-        status, result = long.result(handle)
-        assert status == GoalStatus.STATUS_ABORTED, result.error_msg
-        assert result.error_code == ComputePathToPose.Result.NO_VALID_PATH, result.error_msg
-        assert 'arrived while planning' in result.error_msg, result.error_msg
-        assert len(result.path.poses) == 0
-        refused = planner.wait_diag(mark, 'plan', check=lambda v: v['reason'] == (
-            'compute_path_to_pose request'))
+        if kind == 'get_plan':
+            path = wait_future(request, RESULT_TIMEOUT_S, 'the GetPlan response').plan
+        else:
+            handle = wait_future(request, 20.0, 'the goal response')
+            assert handle.accepted
+            status, result = long.result(handle)
+            assert status == GoalStatus.STATUS_ABORTED, result.error_msg
+            action = (ComputePathToPose if kind == 'compute_path_to_pose'
+                      else ComputePathThroughPoses)
+            assert result.error_code == action.Result.NO_VALID_PATH, result.error_msg
+            assert 'arrived while planning' in result.error_msg, result.error_msg
+            path = result.path
+        assert len(path.poses) == 0
+        refused = planner.wait_diag(mark, 'plan', check=lambda v: v['reason'] == f'{kind} request')
         assert refused['status'] == 'no_valid_path', refused
+        assert 'arrived while planning' in refused['message'], refused
         assert planner.plans.mark() == plans, 'a plan crossing the wall was published'
     finally:
+        # The next request must start on the map without the wall.
+        shown = planner.markers.mark()
         planner.publish('obstacles', marker_array(
             marker('wall', 0, Marker.CUBE, *wall, action=Marker.DELETE)))
+        planner.wait_obstacle_count(6, shown, timeout_s=60.0)
 
 
 # ---------------------------------------------------------------- ComputePathThroughPoses

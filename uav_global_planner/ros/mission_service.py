@@ -17,11 +17,14 @@ count. The file name is a parameter, as the rest of the export's settings are::
     ros2 param set /global_planner mission_file /tmp/survey.plan
     ros2 service call /export_mission std_srvs/srv/Trigger    # <namespace>/export_mission
 
-The plan in force is the one latched on the node's ``plan`` and ``unsmoothed_plan`` topics,
-which this module subscribes to (an empty ``plan`` withdraws it). The mission is built on the
-node's planning worker (:meth:`PlanHost.submit`), against the newest obstacles and settings the
-worker has applied, so it is certified against what the planner knows when the request is
-served; the service callback awaits it without blocking the executor.
+The plan in force is the one latched on the node's ``plan``, ``unsmoothed_plan`` and
+``trajectory`` topics, read from the node itself
+(:meth:`~uav_global_planner.ros.node_in_force.PlanInForce.plan_for_export`): never a copy that a
+withdrawal has overtaken. The mission is built on the node's planning worker
+(:meth:`PlanHost.submit`) and certified against the newest map the node holds (with the unknown
+space when that is occupied); when the plan in force is withdrawn or replaced while the file is
+written, the file is removed and the export refused. The service callback awaits the answer
+without blocking the executor.
 
 Parameters (declared on the node; validated when set, other parameters are left to their owner):
 
@@ -42,12 +45,9 @@ from dataclasses import dataclass, field
 import json
 import math
 import queue
-import threading
 from typing import Any, Dict, List, Mapping, Optional, Tuple
 
 from diagnostic_msgs.msg import DiagnosticStatus
-from nav_msgs.msg import Path as PathMsg
-import numpy as np
 from rcl_interfaces.msg import ParameterDescriptor, ParameterType, SetParametersResult
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.exceptions import ParameterUninitializedException
@@ -61,8 +61,6 @@ from uav_global_planner.core.geodesy import (GeodeticOrigin, MissingDependencyEr
 from uav_global_planner.core.mission import (build_mission, END_ACTIONS, FIRMWARES,
                                              format_from_path, FORMATS, MissionSettings,
                                              UncertifiableMissionError, write_mission)
-from uav_global_planner.ros import conversions as conv
-from uav_global_planner.ros.qos import LATCHED_QOS
 
 #: Name of the service (relative to the node's namespace).
 EXPORT_SERVICE = 'export_mission'
@@ -188,10 +186,6 @@ class _Export:
     """One service request between the executor and the planning worker."""
 
     request: ExportRequest
-    plan: np.ndarray
-    raw: np.ndarray
-    frame_id: str
-    stamp_ns: int
     future: Future = field(default_factory=Future)
     outcome: Tuple[bool, str] = (False, '')
 
@@ -203,7 +197,8 @@ class MissionExportService:
     ----------
     host : PlanHost
         The planner node (:class:`~uav_global_planner.ros.nav2_interfaces.PlanHost`): its
-        ``node``, ``submit``, ``current_settings`` and ``publish_diagnostics`` are used.
+        ``node``, ``submit``, ``publish_diagnostics``, ``plan_for_export`` and
+        ``while_in_force`` are used.
 
     Raises
     ------
@@ -234,27 +229,17 @@ class MissionExportService:
         origin_from_value(values[ORIGIN_PARAMETER])
         node.add_on_set_parameters_callback(self._validate)
 
-        self._lock = threading.Lock()
-        # Guarded by _lock: the latest plan and unsmoothed plan (stamp [ns], frame, points).
-        self._plan: Optional[Tuple[int, str, np.ndarray]] = None
-        self._raw: Optional[Tuple[int, str, np.ndarray]] = None
         self._finished: 'queue.SimpleQueue[_Export]' = queue.SimpleQueue()
         # Reentrant: the coroutine keeps its group busy while the worker builds the mission,
         # and the node's default group would stall the node's other callbacks meanwhile.
         self._group = ReentrantCallbackGroup()
         self._guard = node.create_guard_condition(self._complete_finished, self._group)
-        self._plan_sub = node.create_subscription(PathMsg, 'plan', self._on_plan, LATCHED_QOS,
-                                                  callback_group=self._group)
-        self._raw_sub = node.create_subscription(PathMsg, 'unsmoothed_plan', self._on_raw,
-                                                 LATCHED_QOS, callback_group=self._group)
         self._service = node.create_service(Trigger, EXPORT_SERVICE, self._on_export,
                                             callback_group=self._group)
 
     def destroy(self) -> None:
-        """Destroy the service, the subscriptions and the guard condition (before the node)."""
+        """Destroy the service and the guard condition (before the node)."""
         self._node.destroy_service(self._service)
-        self._node.destroy_subscription(self._plan_sub)
-        self._node.destroy_subscription(self._raw_sub)
         self._node.destroy_guard_condition(self._guard)
 
     # ---------------------------------------------------------------------------- parameters
@@ -283,18 +268,6 @@ class MissionExportService:
             return SetParametersResult(successful=False, reason=str(error))
         return SetParametersResult(successful=True)
 
-    # ---------------------------------------------------------------------------- plan intake
-
-    def _on_plan(self, msg: PathMsg) -> None:
-        entry = (conv.time_to_ns(msg.header.stamp), msg.header.frame_id, conv.path_to_points(msg))
-        with self._lock:
-            self._plan = entry
-
-    def _on_raw(self, msg: PathMsg) -> None:
-        entry = (conv.time_to_ns(msg.header.stamp), msg.header.frame_id, conv.path_to_points(msg))
-        with self._lock:
-            self._raw = entry
-
     # ---------------------------------------------------------------------------- service
 
     async def _on_export(self, request_msg, response):
@@ -302,13 +275,7 @@ class MissionExportService:
             request = request_from_values(self._values())
         except InvalidInputError as error:
             return self._answer(response, False, f'not exported: {error}')
-        with self._lock:
-            plan, raw = self._plan, self._raw
-        if plan is None or len(plan[2]) < 2:
-            return self._answer(response, False, 'not exported: no plan in force (none was '
-                                'published on plan yet, or it was withdrawn)')
-        raw_points = raw[2] if raw is not None and raw[0] == plan[0] else np.empty((0, 3))
-        export = _Export(request, plan[2], raw_points, plan[1], plan[0])
+        export = _Export(request)
         self._host.submit(lambda planner, snapshot: self._run(export, planner, snapshot))
         success, message = await export.future
         return self._answer(response, success, message)
@@ -347,26 +314,38 @@ class MissionExportService:
             pass
 
     def _export(self, export: _Export, planner: Any, snapshot: Any) -> Tuple[bool, str]:
+        plan, why_not = self._host.plan_for_export()
+        if plan is None:
+            return False, f'not exported: {why_not}'
         settings = snapshot.settings
-        if export.frame_id != settings.frame_id:
-            return False, (f'not exported: the plan in force is in frame {export.frame_id!r} '
+        if plan.frame_id != settings.frame_id:
+            return False, (f'not exported: the plan in force is in frame {plan.frame_id!r} '
                            f'but the planner now works in {settings.frame_id!r}')
         request = export.request
+        result = plan.result
         try:
-            mission = build_mission(export.plan, planner.obstacles, settings.config,
-                                    request.origin, request.settings, raw_path=export.raw)
-            path = write_mission(mission, request.file, request.file_format)
+            mission = build_mission(result.trajectory.positions,
+                                    planner.solid(plan.live.obstacles), settings.config,
+                                    request.origin, request.settings, raw_path=result.path)
+            # Written while the plan is in force: a ground station never loads the mission of
+            # a plan that a map withdrew (or a newer plan replaced) meanwhile.
+            in_force, path = self._host.while_in_force(
+                plan.stamp_ns,
+                lambda: write_mission(mission, request.file, request.file_format))
         except UncertifiableMissionError as error:
             return False, f'not exported: no certified mission: {error}'
         except (InvalidInputError, MissingDependencyError) as error:
             return False, f'not exported: {error}'
+        if not in_force:
+            return False, ('not exported: the plan in force was withdrawn or replaced while '
+                           'its mission was built; ask again')
         clearance = mission.certified_clearance_m
         return True, json.dumps({
             'path': str(path), 'format': request.file_format,
             'firmware': request.settings.firmware, 'waypoints': mission.waypoint_count,
             'items': len(mission.items), 'required_clearance_m': mission.required_clearance_m,
             'certified_clearance_m': clearance if math.isfinite(clearance) else None,
-            'plan_stamp_ns': export.stamp_ns})
+            'plan_stamp_ns': plan.stamp_ns})
 
     def _complete_finished(self) -> None:
         """Guard-condition callback (executor thread): complete the finished requests."""

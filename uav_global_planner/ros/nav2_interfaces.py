@@ -54,8 +54,7 @@ import math
 import queue
 import threading
 import time
-from typing import (Any, Callable, Dict, List, Mapping, Optional, Protocol, Sequence, Set,
-                    Tuple)
+from typing import Any, Callable, Dict, List, Mapping, Optional, Protocol, Set, Tuple
 
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
@@ -75,7 +74,6 @@ from uav_global_planner.core.start_admission import admit, explain, nearest_free
 from uav_global_planner.core.status import (NAV2_CODE_BY_STATUS, NAV2_INVALID_PLANNER,
                                             NAV2_NONE, NAV2_UNKNOWN, PlanStatus)
 from uav_global_planner.ros import conversions as conv
-from uav_global_planner.ros.plan_writer import startup_plan_writer
 from uav_global_planner.ros.start_source import StartSource
 from uav_global_planner.ros.takeover import Settlement, START_REFUSALS, Takeover
 
@@ -122,15 +120,23 @@ class PlanHost(Protocol):
         obstacles are applied; return at once. ``snapshot`` carries ``settings`` (frame_id and
         the planner config), ``start`` [m], ``start_source`` and ``obstacles_version``."""
 
-    def publish_plan(self, result: PlanResult, frame_id: str, stamp_ns: int,
-                     orientation: Sequence[float]) -> Optional[bytes]:
-        """On the worker: publish a successful plan on ``plan``, ``unsmoothed_plan`` and
-        ``trajectory`` as the node's own plans are; return the serialised ``plan`` message, or
-        None when a newer map withdrew it at once."""
+    def release(self, result: PlanResult, checked_version: int, frame_id: str, stamp_ns: int,
+                orientation: Tuple[float, ...], *, publish: bool,
+                position: Optional[np.ndarray] = None) -> Any:
+        """On the worker: the gate of every plan
+        (:meth:`~uav_global_planner.ros.node_in_force.PlanInForce.release`): certify
+        ``result`` (certified on map ``checked_version``) against the newest map, then latch it
+        on ``plan``, ``unsmoothed_plan`` and ``trajectory`` (``publish``) or only serialise it;
+        the returned :class:`~uav_global_planner.ros.node_in_force.Release` holds the bytes of
+        ``plan`` or why it was refused."""
 
-    def newer_map_blocks(self, result: PlanResult, snapshot: Any) -> str:
-        """On the worker: why ``result``, planned on the map of ``snapshot``, must not be
-        handed out (a map that arrived meanwhile makes it collide); '' when it may."""
+    def plan_for_export(self) -> Tuple[Any, str]:
+        """On the worker: the plan in force and the newest map it keeps clear of
+        (:class:`~uav_global_planner.ros.node_in_force.ExportablePlan`), or (None, why not)."""
+
+    def while_in_force(self, stamp_ns: int, action: Callable[[], Any]) -> Tuple[bool, Any]:
+        """Run ``action`` while the plan stamped ``stamp_ns`` is still in force (nothing is
+        released or withdrawn meanwhile); (False, None) when it was withdrawn or replaced."""
 
     def publish_diagnostics(self, stamp_ns: int, level: bytes, message: str,
                             values: Mapping[str, object]) -> None:
@@ -519,22 +525,17 @@ class PlannerInterfaces:
         path = None
         if result.ok:
             # Certified against the map it was planned on; a client gets it only when the
-            # newest map keeps it clear too, and (published) while it is still in force.
-            refusal = self._host.newer_map_blocks(result, snapshot)
-            data: Optional[bytes] = None
-            if not refusal:
-                orientation = tuple(float(v) for v in request.orientation)
-                if request.publish:
-                    data = self._host.publish_plan(result, frame, stamp_ns, orientation)
-                    if data is None:
-                        refusal = ('the plan was withdrawn as soon as it was published: a map '
-                                   'that arrived meanwhile makes it collide; ask again')
-                else:
-                    data = startup_plan_writer().plan_path(result, frame, stamp_ns, orientation)
-            if data is None:
-                result = result.refused(PlanStatus.NO_VALID_PATH, refusal)
+            # newest map keeps it clear too and (published) it is in force: the node's gate.
+            position = (snapshot.start if request.start is None
+                        and snapshot.start_source != StartSource.PARAMETER else None)
+            released = self._host.release(
+                result, snapshot.obstacles_version, frame, stamp_ns,
+                tuple(float(v) for v in request.orientation), publish=request.publish,
+                position=position)
+            if released.released:
+                path = deserialize_message(released.data, Path)
             else:
-                path = deserialize_message(data, Path)
+                result = result.refused(PlanStatus.NO_VALID_PATH, released.refusal)
         message = result.message
         failed_leg = getattr(result, 'failed_leg', -1)
         if failed_leg >= 0 and 'leg' not in message:

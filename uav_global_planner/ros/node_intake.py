@@ -192,29 +192,27 @@ class MapIntake:
             self._accept_map(accepted)
             return
         # The plan in force is checked before the worker sees the map, so a withdrawal and the
-        # request for its replacement reach the worker together with the map.
-        withdrawn = self._recheck_in_force(live) if live.version != previous.version else None
+        # request for its replacement reach the worker together with the map; the map is
+        # installed under the publish lock, so no plan is released between the check and the
+        # installation (PlanInForce.release certifies against the map installed).
         now_ns = self.node.get_clock().now().nanoseconds
-        with self._wake:
-            self._map = live
-            self._accept_map(accepted)
-            if live.version != previous.version:
-                self._obstacles_stamp_ns = stamp_ns
-                self._map_stamp_ns = max(self._map_stamp_ns, stamp_ns)
-            self._map_changed = True
-            self._intake_times = (elapsed, live.index_time_s, live.update.time_s)
-            if cloud is not UNCHANGED and cloud_msg is not None and cloud_stamp > 0:
-                self._cloud_latencies.append((now_ns - cloud_stamp) * 1e-9)
-            self._request_replacement(withdrawn, settings)
-            if airspace is not None and self._goal is not None:
-                # A new geofence replans the active goal on the map that holds it.
-                self._replan_request = self._replan_request or 'the geofence changed'
-            self._wake.notify_all()
-        # A plan published meanwhile was checked against the previous map: check it too.
-        if live.version != previous.version:
-            withdrawn = self._recheck_in_force(live)
+        with self._publish_lock:
+            withdrawn = (self._recheck_in_force(live) if live.version != previous.version
+                         else None)
             with self._wake:
+                self._map = live
+                self._accept_map(accepted)
+                if live.version != previous.version:
+                    self._obstacles_stamp_ns = stamp_ns
+                    self._map_stamp_ns = max(self._map_stamp_ns, stamp_ns)
+                self._map_changed = True
+                self._intake_times = (elapsed, live.index_time_s, live.update.time_s)
+                if cloud is not UNCHANGED and cloud_msg is not None and cloud_stamp > 0:
+                    self._cloud_latencies.append((now_ns - cloud_stamp) * 1e-9)
                 self._request_replacement(withdrawn, settings)
+                if airspace is not None and self._goal is not None:
+                    # A new geofence replans the active goal on the map that holds it.
+                    self._replan_request = self._replan_request or 'the geofence changed'
                 self._wake.notify_all()
 
     def _request_replacement(self, withdrawn: Optional[InForce],

@@ -162,33 +162,22 @@ class PlanningWorker:
             return None
         return 'obstacles changed and the current path is no longer clear'
 
-    def newer_map_blocks(self, result: PlanResult, snap: Snapshot) -> str:
-        """Why ``result``, planned on the map of ``snap``, must not be handed out: a map that
-        arrived meanwhile makes its curve ahead of the vehicle collide ('' when the newest map
-        is the one it was planned on, or keeps it clear). Worker only."""
-        with self._wake:
-            newest = self._map
-        if newest.version == snap.obstacles_version:
-            return ''
-        verdict = self._verdict_ahead(result, snap, newest.obstacles)
-        if verdict.clear:
-            return ''
-        where = ('' if verdict.blocked_at is None
-                 else f' near {np.round(verdict.blocked_at, 3).tolist()}')
-        return (f'a map that arrived while planning (version {newest.version}; planned on '
-                f'{snap.obstacles_version}) makes the path collide{where}; ask again')
-
     def _clear_ahead(self, result: PlanResult, snap: Snapshot,
                      obstacles: Optional[Any] = None) -> bool:
         """True when the curve of ``result`` still ahead of the vehicle is certified to keep
         gamma from ``obstacles`` (default: the planner's), by the clearance engine."""
         return self._verdict_ahead(result, snap, obstacles).clear
 
+    @staticmethod
+    def _plan_position(snap: Snapshot) -> Optional[np.ndarray]:
+        """Where the vehicle was when ``snap`` was taken (None: only the start parameter is
+        known): a plan from there is certified ahead of it."""
+        return snap.start if snap.start_source != StartSource.PARAMETER else None
+
     def _verdict_ahead(self, result: PlanResult, snap: Snapshot,
                        obstacles: Optional[Any] = None) -> ClearanceVerdict:
         # Only the part still ahead of the vehicle matters.
-        position = snap.start if snap.start_source != StartSource.PARAMETER else None
-        verdict = self._planner.plan_is_clear(result, position, obstacles)
+        verdict = self._planner.plan_is_clear(result, self._plan_position(snap), obstacles)
         if not verdict.clear and verdict.blocked_at is not None:
             self._log.warning('the plan is blocked near '
                               f'{np.round(verdict.blocked_at, 3).tolist()}')
@@ -311,17 +300,20 @@ class PlanningWorker:
         drift_note = ''
         settlement: Optional[Settlement] = None
         with self._publish_lock:
+            # No map is installed while the publish lock is held (see PlanInForce.release).
             with self._wake:
-                newest = (self._map, self._obstacles_stamp_ns)
+                newest_stamp_ns = self._obstacles_stamp_ns
                 vehicle = self._start if self._start_source != StartSource.PARAMETER else None
                 goal_current = self._goal is not None and self._goal.serial == goal.serial
-            if result.ok and newest[0].version != checked[0]:
+            if result.ok:
                 # A map arrived while planning: publish only a plan that keeps gamma from it
                 # too; otherwise plan again on it at once.
-                if not self._clear_ahead(result, snap, newest[0].obstacles):
-                    self._discard(snap, goal, newest[0].version, newest[1])
+                verdict, newest = self.newest_map_verdict(result, checked[0],
+                                                          self._plan_position(snap))
+                if verdict is not None and not verdict.clear:
+                    self._discard(snap, goal, newest.version, newest_stamp_ns)
                     return
-                checked = (newest[0].version, newest[1])
+                checked = (newest.version, newest_stamp_ns)
             if result.ok and takeover.moving:
                 settlement = self.settle_takeover(takeover, result)
                 if settlement.problem and settlement.retry and goal_current:
@@ -351,8 +343,9 @@ class PlanningWorker:
             if result.ok:
                 self._drift_replans = 0
                 orientation = tuple(float(v) for v in goal.orientation)
-                self._latch(result, frame, stamp_ns, orientation, snap.start_source, checked[0],
-                            goal.serial)
+                self.release(result, checked[0], frame, stamp_ns, orientation, publish=True,
+                             position=self._plan_position(snap),
+                             start_source=snap.start_source, goal_serial=goal.serial)
             withdrawn = False
             if (not result.ok and self._latched is not None
                     and not self._clear_ahead(self._latched, snap)):
