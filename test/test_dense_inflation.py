@@ -154,18 +154,6 @@ def test_dense_builds_use_the_transform_and_agree_in_every_layout(monkeypatch):
     assert np.array_equal(again.to_dense(), full)
 
 
-def test_vectorised_transform_equals_the_stamping():
-    rng = np.random.default_rng(9)
-    grid = VoxelGrid.from_bounds([-1.0, -1.0, 0.0], [1.5, 1.2, 1.0], 0.05)
-    for gamma in (0.0, 0.1, 0.125, 0.3):
-        points = _dense_cloud(rng, grid, gamma)
-        relevant = inflation._relevant_points(grid, points, gamma)
-        blocked = np.zeros(grid.shape, dtype=bool)
-        dense_inflation.mark_vectorised(grid.bounds_min, grid.resolution, grid.shape, relevant,
-                                        gamma, blocked)
-        assert np.array_equal(blocked, _stamped(grid, points, gamma)), gamma
-
-
 def test_the_build_calls_its_checkpoint_and_stops_when_it_raises():
     grid = VoxelGrid.from_bounds([0.0, 0.0, 0.0], [3.0, 3.0, 2.4], 0.05)
     obstacles = ObstacleSet([PointSet(_wall_room(0.05, 0.01))])

@@ -5,7 +5,7 @@ points x (gamma / delta)^3 node visits. A dense scan, such as a room scanned at 
 points, a dozen or more per grid cell), makes that billions of visits, most of them on nodes
 that many other balls block too. This pass works on the grid's cells instead:
 
-1. Every point p is assigned its nearest node c(p); ``r`` is the largest offset |p - c(p)|
+1. Every point p is assigned its nearest node c(p); ``r`` is the largest offset ``|p - c(p)|``
    (at most delta sqrt(3) / 2, plus rounding).
 2. An exact Euclidean distance transform of the occupied nodes (the lower envelope of
    parabolas of Felzenszwalb and Huttenlocher, axis by axis, on integer squared distances in
@@ -32,20 +32,17 @@ term is large for isolated points (each one's shell is a sphere of its own): the
 compares the cost with the stamping's and picks (:func:`transform_cost`, ``max_work`` of
 :func:`mark_box`).
 
-Without numba, :func:`mark_vectorised` runs the same bounds with
-``scipy.ndimage.distance_transform_edt`` and decides the shell nodes with scipy's KD-tree
-(which forms the distance with the same formula).
+One implementation: compiled loops (with ``UAV_PLANNER_DISABLE_JIT=1`` the same source runs as
+plain Python, slowly, for debugging).
 """
 
 from dataclasses import dataclass
 import math
-from typing import Callable, Optional, Tuple
+from typing import Tuple
 
 import numpy as np
-from scipy import ndimage
-from scipy.spatial import cKDTree
 
-from uav_global_planner.core.jit import JIT_ENABLED, njit
+from uav_global_planner.core.jit import njit
 
 #: Slack of the bounds of step 3, relative to gamma + delta [m / m]; a further 1e-12 of the
 #: largest coordinate covers the rounding of the node coordinates and offsets (about 1e-16 of
@@ -54,10 +51,6 @@ SLACK_RELATIVE = 1e-9
 _SLACK_SCALE = 1e-12
 #: Squared distance [cells^2] of a node with no occupied node in its row (and box).
 _FAR = 1 << 30
-# Nodes per chunk of the exact test of the vectorised pass (bounds its temporary memory).
-_CHUNK = 1 << 18
-# Cells of a slab of the vectorised pass, halo included: about 20 bytes a cell of scratch.
-_SLAB_CELLS = 1 << 21
 #: Widest (gamma + r) / delta [cells] for which :func:`mark_box` is offered: its exact test
 #: reads about 4 pi (that)^2 cells a shell node, beyond which stamping or a nearest-point query
 #: is cheaper anyway (and the offset table stays small).
@@ -121,16 +114,8 @@ def bin_points(points: np.ndarray, origin: np.ndarray, delta: float,
     ``delta`` [m], for the margin ``gamma`` [m]; see :class:`CellBins`."""
     pts = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
     start = np.ascontiguousarray(origin, dtype=np.float64)
-    if JIT_ENABLED:
-        cells = np.empty(pts.shape, dtype=np.int64)
-        largest, scale = _assign(pts, start, float(delta), cells)
-    else:
-        cells = np.rint((pts - start) * (1.0 / delta)).astype(np.int64)
-        nodes = start + cells * delta
-        gaps = pts - nodes
-        largest = float(np.sqrt(np.max(np.sum(gaps * gaps, axis=1)))) if len(pts) else 0.0
-        scale = float(np.max(np.sum(np.abs(pts) + np.abs(nodes), axis=1), initial=0.0))
-        scale = max(scale, float(np.sum(np.abs(start))))
+    cells = np.empty(pts.shape, dtype=np.int64)
+    largest, scale = _assign(pts, start, float(delta), cells)
     slack = SLACK_RELATIVE * (gamma + delta) + _SLACK_SCALE * scale
     offset = largest + slack
     outer = (gamma + offset + slack) / delta
@@ -471,56 +456,3 @@ def _envelope(values, n, out, where, bounds, cap):  # pragma: no cover - compile
         p = where[j]
         total = (q - p) * (q - p) + values[p]
         out[q] = total if total <= cap else _FAR
-
-
-def mark_vectorised(origin: np.ndarray, delta: float, shape, points: np.ndarray,
-                    gamma: float, blocked: np.ndarray,
-                    checkpoint: Optional[Callable[[], None]] = None) -> None:
-    """The pass with numpy and scipy (no compiled loops), on a whole-grid mask, in place.
-
-    The grid is cut into slabs along x of at most :data:`_SLAB_CELLS` cells with their halo;
-    the transform of each is ``scipy.ndimage.distance_transform_edt`` of its occupied nodes,
-    and its shell nodes ask scipy's KD-tree of the points for their nearest one (the same
-    formula as the stamping), in chunks of bounded memory. ``checkpoint()`` is called between
-    slabs and chunks.
-    """
-    if len(points) == 0:
-        return
-    bins = bin_points(points, origin, delta, gamma)
-    sides = np.asarray(shape, dtype=np.int64)
-    halo = bins.halo
-    across = int((sides[1] + 2 * halo) * (sides[2] + 2 * halo))
-    thickness = int(max(1, min(sides[0], _SLAB_CELLS // across - 2 * halo)))
-    tree = cKDTree(bins.points)
-    upper = gamma + bins.slack + 1e-9 * (1.0 + gamma)
-    start = np.asarray(origin, dtype=np.float64)
-    for first in range(0, int(sides[0]), thickness):
-        if checkpoint is not None:
-            checkpoint()
-        count = min(thickness, int(sides[0]) - first)
-        low = np.array([first - halo, -halo, -halo])
-        size = np.array([count, sides[1], sides[2]]) + 2 * halo
-        local = bins.cells - low
-        inside = np.all((local >= 0) & (local < size), axis=1)
-        if not inside.any():
-            continue
-        free = np.ones(tuple(int(n) for n in size), dtype=bool)
-        free[tuple(local[inside].T)] = False
-        distance = ndimage.distance_transform_edt(free)[halo:halo + count,
-                                                        halo:halo + int(sides[1]),
-                                                        halo:halo + int(sides[2])]
-        del free
-        squared = distance * distance
-        slab = blocked[first:first + count]
-        slab |= squared <= bins.inner2
-        shell = np.flatnonzero(((squared > bins.inner2) & (squared <= bins.outer2)
-                                & ~slab).reshape(-1))
-        flat = slab.reshape(-1)
-        for begin in range(0, len(shell), _CHUNK):
-            if checkpoint is not None:
-                checkpoint()
-            number = shell[begin:begin + _CHUNK]
-            index = np.stack(np.unravel_index(number, slab.shape), axis=-1)
-            index[:, 0] += first
-            nearest, _ = tree.query(start + index * delta, distance_upper_bound=upper)
-            flat[number] |= nearest <= gamma

@@ -6,10 +6,17 @@ resolution divides the extent. Coordinates are in metres in the planning frame.
 """
 
 from dataclasses import dataclass
+import math
 
 import numpy as np
 
 from uav_global_planner.core.errors import InvalidInputError
+
+#: Distance from the centre of a cube of side 1 to its corners, sqrt(3) / 2: a point of a segment
+#: between two 26-neighbour nodes, of a cell, or of a cube of side ``s`` lies within this times
+#: delta (or ``s``) of a node (or the centre). The one name of the factor wherever a cell's reach
+#: bounds a distance (the fallback grid, the raw polyline's deficit, a map cell's margin).
+HALF_CELL_DIAGONAL = math.sqrt(3.0) / 2.0
 
 #: Default cap on the number of grid nodes; a typo such as ``resolution = 0.001`` fails at once.
 #: From 16 M nodes up the grid is block-sparse (:mod:`uav_global_planner.core.sparse_grid`):

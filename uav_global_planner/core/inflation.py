@@ -22,11 +22,12 @@ grid:
   free, without writing their nodes; only the bricks the limits cross are written.
 
 The passes are compiled loops (numba, see :mod:`uav_global_planner.core.jit`) that write straight
-into the mask, without temporaries. Without numba the same rule runs as vectorised numpy passes
-over the same sub-blocks. Both evaluate the distance with one floating-point formula, the one of
-:mod:`uav_global_planner.core.obstacles` (node coordinate ``min + i * delta``, differences
-squared and summed x, y, z in that order, then the square root), so they give identical masks
-to the last bit, ties at exactly gamma included.
+into the mask, without temporaries; there is one implementation of each (with
+``UAV_PLANNER_DISABLE_JIT=1`` the same source runs as plain Python, slowly, for debugging). They
+evaluate the distance with one floating-point formula, the one of
+:mod:`uav_global_planner.core.obstacles` (node coordinate ``min + i * delta``, differences squared
+and summed x, y, z in that order, then the square root), so the masks agree with
+``ObstacleSet.distance(node) <= gamma`` to the last bit, ties at exactly gamma included.
 
 One module, though long (about 1200 lines): every stamping kernel (spheres, boxes, points,
 zones) must use the one floating-point formula and the one window scheme of both layouts, so
@@ -43,12 +44,11 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from uav_global_planner.core.dense_inflation import (bin_points, bucket, bucket_spans, CellBins,
-                                                     halo_cells, mark_box, mark_vectorised,
-                                                     transform_cost)
+                                                     mark_box, transform_cost)
 from uav_global_planner.core.errors import InvalidInputError
 from uav_global_planner.core.grid import VoxelGrid
-from uav_global_planner.core.jit import JIT_ENABLED, njit
-from uav_global_planner.core.obstacles import box_distance, ObstacleSet, sphere_distance
+from uav_global_planner.core.jit import njit
+from uav_global_planner.core.obstacles import ObstacleSet
 from uav_global_planner.core.sparse_grid import (BRICK, BRICK_BITS, choose_layout, FROM_NODES,
                                                  KNOWN_FREE, KNOWN_FULL, SparseBuilder,
                                                  SparseMask)
@@ -56,16 +56,13 @@ from uav_global_planner.core.spatial_index import (_column_part, _finish, shape_
                                                    stamp_shapes)
 from uav_global_planner.core.terrain import column_limits
 
-# Largest number of (point, nearby node) pairs, or of nodes, handled at once by the vectorised
-# passes: bounds their temporary memory (about 100 bytes each) whatever gamma / delta and the
-# number of points.
+# Largest number of nodes one nearest-point query of the KD-tree handles at once: bounds its
+# temporary memory (about 100 bytes a node) whatever the window's size.
 _PAIR_BUDGET = 1 << 18
 # When the points' balls visit more than this many nodes per grid node (heavily overlapping
 # balls: gamma many times delta in a dense cloud), a nearest-point query of every node is
-# cheaper. A compiled visit costs about 1-3 ns and a KD-tree query of a node about 1 us; the
-# vectorised visits cost about 100 ns.
+# cheaper. A compiled visit costs about 1-3 ns and a KD-tree query of a node about 1 us.
 _VISITS_PER_NODE_COMPILED = 300.0
-_VISITS_PER_NODE_VECTORISED = 8.0
 # A cell of the distance transform of dense clouds (with its halo: sorting the points in,
 # three passes, the bounds) costs about as much as this many compiled visits (measured on a
 # 2 cm room scan and a voxel map: 10-15 ns a cell against about 2 ns a visit). The exact test of
@@ -148,10 +145,7 @@ def blocked_mask(grid: VoxelGrid, obstacles: ObstacleSet, safety_margin: float,
     else:
         blocked = _checked_out(grid, out)
         blocked[...] = False
-    if JIT_ENABLED:
-        _mark_compiled(grid, obstacles, gamma, blocked, checkpoint)
-    else:
-        _mark_vectorised(grid, obstacles, gamma, blocked, checkpoint)
+    _mark_compiled(grid, obstacles, gamma, blocked, checkpoint)
     _mark_terrain(grid, obstacles, gamma, blocked, _ZERO_BASE, _ZERO_BASE,
                   np.asarray(grid.shape, dtype=np.int64) - 1, checkpoint)
     return blocked
@@ -199,9 +193,6 @@ def reinflate_tiles(grid: VoxelGrid, obstacles: ObstacleSet, safety_margin: floa
     if size < 1:
         raise InvalidInputError(f'tile_nodes must be >= 1, got {tile_nodes}')
     if len(tiles) == 0:
-        return
-    if not JIT_ENABLED:
-        blocked_mask(grid, obstacles, gamma, out=blocked)
         return
     _clear_tiles(blocked, tiles, size)
     shape = np.asarray(grid.shape, dtype=np.int64)
@@ -260,12 +251,6 @@ def _sparse_mask(grid: VoxelGrid, obstacles: ObstacleSet, gamma: float,
     (:meth:`_SparseWork._build_window`), so their cost follows the surfaces, not the volume
     under them.
     """
-    if not JIT_ENABLED:
-        builder = SparseBuilder(grid.shape)
-        dense = blocked_mask(grid, obstacles, gamma, layout='dense', checkpoint=checkpoint)
-        assert isinstance(dense, np.ndarray)
-        builder.pack(dense, _ZERO_BASE)
-        return builder.finish()
     shape = np.asarray(grid.shape, dtype=np.int64)
     work = _SparseWork(grid, obstacles, gamma, np.zeros(3, np.int64), shape - 1, None,
                        checkpoint)
@@ -292,8 +277,6 @@ def reinflate_sparse(grid: VoxelGrid, obstacles: ObstacleSet, safety_margin: flo
         raise InvalidInputError(f'tile_nodes must be >= 1, got {tile_nodes}')
     if len(tiles) == 0:
         return blocked
-    if not JIT_ENABLED:
-        return _sparse_mask(grid, obstacles, gamma)
     shape = np.asarray(grid.shape, dtype=np.int64)
     # Node ranges of the tiles, clipped to the grid.
     spans = np.stack([np.maximum(tiles * size, 0),
@@ -715,7 +698,11 @@ def _stamp_shapes_in(blocked, base, origin, delta, ranges, rows, items, kind, pr
 
 def _mark_by_nearest_point_in(grid: VoxelGrid, points: np.ndarray, gamma: float,
                               block: np.ndarray, base: np.ndarray) -> None:
-    """:func:`_mark_by_nearest_point` for the nodes of one window (from node ``base`` on)."""
+    """Block every node of one window (from node ``base`` on) whose nearest point is within
+    gamma, in chunks of nodes, in place. scipy's KD-tree forms the Euclidean distance with the
+    same formula as the stamping (differences squared and summed in axis order, then the
+    square root); its query prunes beyond the bound strictly, so the bound gets a hair of room
+    and the test applies the rule exactly."""
     tree = cKDTree(points)
     upper = gamma + 1e-9 * (1.0 + gamma)
     axes = [np.arange(base[a], base[a] + block.shape[a]) for a in range(3)]
@@ -1082,7 +1069,7 @@ def _stamp_points_in(blocked, base, origin, delta, points, items,
     # Each point visits the nodes of its ball: the x range within gamma, for each x the y range
     # within sqrt(gamma^2 - dx^2), for each (x, y) the z range within sqrt(gamma^2 - dx^2 - dy^2),
     # every range widened by a slack far above rounding. Which nodes are blocked is decided by
-    # the exact rule on the same formula as the vectorised pass, so the ranges only save work.
+    # the exact rule on the formula of ObstacleSet.distance, so the ranges only save work.
     # Rows are a few nodes long: each node is tested, without a branch (which, in a dense
     # cloud whose balls overlap, would be mispredicted about as often as not).
     nx, ny, nz = blocked.shape
@@ -1123,100 +1110,3 @@ def _stamp_points_in(blocked, base, origin, delta, points, items,
 def _point_hit(z, row, point_z, gamma):  # pragma: no cover - compiled
     dz = z - point_z
     return math.sqrt(row + dz * dz) <= gamma
-
-
-# --- vectorised passes (numba missing or disabled) ------------------------------------------
-
-def _node_block(grid: VoxelGrid, lo: np.ndarray, hi: np.ndarray):
-    """Index slices and node positions of the sub-block covering world box [lo, hi].
-
-    Returns ``None`` when the box misses the grid.
-    """
-    (first, last), = _block_ranges(grid, lo[None, :], hi[None, :])
-    if np.any(first > last):
-        return None
-    slices = tuple(slice(int(a), int(b) + 1) for a, b in zip(first, last))
-    axes = [grid.axis_coordinates(axis)[slices[axis]] for axis in range(3)]
-    positions = np.stack(np.meshgrid(*axes, indexing='ij'), axis=-1)
-    return slices, positions
-
-
-def _mark_vectorised(grid: VoxelGrid, obstacles: ObstacleSet, gamma: float,
-                     blocked: np.ndarray, checkpoint: Checkpoint = None) -> None:
-    """Every obstacle's nodes within gamma, by numpy passes over sub-blocks, in place."""
-    _mark_zones(grid, obstacles, gamma, blocked)
-    for center, radius in zip(obstacles.sphere_centers, obstacles.sphere_radii):
-        reach = radius + gamma
-        block = _node_block(grid, center - reach, center + reach)
-        if block is not None:
-            slices, positions = block
-            near = sphere_distance(positions, center[None, :], np.array([radius])) <= gamma
-            blocked[slices] |= near
-    for lo, hi in zip(obstacles.box_mins, obstacles.box_maxs):
-        block = _node_block(grid, lo - gamma, hi + gamma)
-        if block is not None:
-            slices, positions = block
-            blocked[slices] |= box_distance(positions, lo[None, :], hi[None, :]) <= gamma
-    if len(obstacles.points):
-        if checkpoint is not None:
-            checkpoint()
-        _mark_near_points(grid, _relevant_points(grid, obstacles.points, gamma), gamma, blocked,
-                          checkpoint)
-
-
-def _mark_near_points(grid: VoxelGrid, points: np.ndarray, gamma: float,
-                      blocked: np.ndarray, checkpoint: Checkpoint = None) -> None:
-    """Block every node within gamma of any of ``points``, exactly, in place, vectorised.
-
-    Each point visits the cube of nodes within gamma / delta cells of it, in chunks of bounded
-    memory; when the cubes hold many more nodes than the grid, the distance transform of the
-    cells decides instead (:func:`~uav_global_planner.core.dense_inflation.mark_vectorised`),
-    or, when its halo would dwarf the grid, every node asks a KD-tree of the points for its
-    nearest one.
-    """
-    if len(points) == 0:
-        return
-    reach = int(np.ceil(gamma / grid.resolution)) + 1
-    if len(points) * (2 * reach + 1) ** 3 > _VISITS_PER_NODE_VECTORISED * grid.size:
-        if transform_cost(grid.shape, halo_cells(gamma, grid.resolution)) <= (
-                _VISITS_PER_NODE_COMPILED / _CELL_COST * grid.size):
-            mark_vectorised(grid.bounds_min, grid.resolution, grid.shape, points, gamma,
-                            blocked, checkpoint)
-        else:
-            _mark_by_nearest_point(grid, points, gamma, blocked, checkpoint)
-        return
-    steps = np.arange(-reach, reach + 1)
-    offsets = np.stack(np.meshgrid(steps, steps, steps, indexing='ij'), axis=-1).reshape(-1, 3)
-    shape = np.asarray(grid.shape)
-    step = max(1, _PAIR_BUDGET // len(offsets))
-    for start in range(0, len(points), step):
-        if checkpoint is not None:
-            checkpoint()
-        chunk = points[start:start + step]
-        base = np.rint((chunk - grid.bounds_min) / grid.resolution).astype(np.int64)
-        candidates = base[:, None, :] + offsets[None, :, :]
-        valid = np.all((candidates >= 0) & (candidates < shape), axis=-1)
-        node_positions = grid.bounds_min + candidates * grid.resolution
-        gap = np.sqrt(np.sum((node_positions - chunk[:, None, :]) ** 2, axis=-1))
-        hit = candidates[valid & (gap <= gamma)]
-        blocked[hit[:, 0], hit[:, 1], hit[:, 2]] = True
-
-
-def _mark_by_nearest_point(grid: VoxelGrid, points: np.ndarray, gamma: float,
-                           blocked: np.ndarray, checkpoint: Checkpoint = None) -> None:
-    """Block every node whose nearest point is within gamma, in chunks of nodes, in place.
-
-    scipy's KD-tree forms the Euclidean distance with the same formula (differences squared
-    and summed in axis order, then the square root), so this agrees with the stamping passes.
-    """
-    tree = cKDTree(points)
-    flat = blocked.reshape(-1)
-    # The query prunes beyond the bound (strictly); the test below applies the rule exactly.
-    upper = gamma + 1e-9 * (1.0 + gamma)
-    for first in range(0, grid.size, _PAIR_BUDGET):
-        if checkpoint is not None:
-            checkpoint()
-        number = np.arange(first, min(first + _PAIR_BUDGET, grid.size))
-        nearest, _ = tree.query(grid.index_to_world(grid.unravel(number)),
-                                distance_upper_bound=upper)
-        flat[number] |= nearest <= gamma

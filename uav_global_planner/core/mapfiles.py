@@ -59,12 +59,10 @@ from typing import Callable, Dict, Iterable, List, Optional, Sequence, Tuple, Un
 import numpy as np
 
 from uav_global_planner.core.errors import InvalidInputError, MissingDependencyError
+from uav_global_planner.core.grid import HALF_CELL_DIAGONAL
 from uav_global_planner.core.obstacles import ObstacleSet, PointSet
 
 PathLike = Union[str, Path]
-
-#: The factor of a cube's side that bounds the distance from its centre to any of its points.
-HALF_DIAGONAL = math.sqrt(3.0) / 2.0
 
 #: A file's resolution (OctoMap cells, downsampling cell) may not be finer than the grid
 #: spacing delta divided by this.
@@ -207,7 +205,7 @@ class MapPoints:
 
 def downsample_margin(cell: float) -> float:
     """Margin [m] that voxel downsampling with cells of side ``cell`` [m] adds: c * sqrt(3) / 2."""
-    return float(cell) * HALF_DIAGONAL
+    return float(cell) * HALF_CELL_DIAGONAL
 
 
 def voxel_downsample(points: np.ndarray, cell: float) -> np.ndarray:
@@ -392,7 +390,7 @@ def _read_octomap(file: Path) -> Tuple[np.ndarray, float, int]:
         offsets = np.stack(np.meshgrid(steps, steps, steps, indexing='ij'), axis=-1)
         parts.append((chosen[:, None, :] + offsets.reshape(1, -1, 3)).reshape(-1, 3))
     points = np.concatenate(parts) if parts else np.empty((0, 3))
-    return points, resolution * HALF_DIAGONAL, len(points)
+    return points, resolution * HALF_CELL_DIAGONAL, len(points)
 
 
 def _read_npy(file: Path) -> Tuple[np.ndarray, float, int]:
@@ -495,7 +493,7 @@ def load_map_points(path: PathLike, downsample: Optional[float] = None, *,
     own = None
     if suffix == '.bt':
         # The margin of an OctoMap is its cell's half diagonal (see the module notes).
-        own = margin / HALF_DIAGONAL
+        own = margin / HALF_CELL_DIAGONAL
         _finite_header(file, 'OctoMap', {'resolution': [own]})
         if own < finest:
             raise InvalidInputError(

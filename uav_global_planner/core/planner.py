@@ -28,7 +28,7 @@ from uav_global_planner.core.errors import (GoalOccupiedError, GoalOutsideMapErr
                                             InvalidInputError, NoValidPathError,
                                             PlanningError, StartOccupiedError,
                                             StartOutsideMapError)
-from uav_global_planner.core.grid import as_point, VoxelGrid
+from uav_global_planner.core.grid import as_point, HALF_CELL_DIAGONAL, VoxelGrid
 from uav_global_planner.core.handover import Handover
 from uav_global_planner.core.inflation import blocked_mask, Mask
 from uav_global_planner.core.motion_limits import MotionLimits
@@ -42,10 +42,6 @@ from uav_global_planner.core.timing import time_parameterize
 from uav_global_planner.core.tracking import tracking_speed_cap
 from uav_global_planner.core.unknown_space import UnknownSpace
 
-# Extra inflation of the fallback grid: a segment between two 26-neighbour nodes lies within
-# delta * sqrt(3) / 2 of one of them and the obstacle distance is 1-Lipschitz, so on a grid
-# inflated by gamma + delta * sqrt(3) / 2 the raw polyline itself keeps clearance >= gamma.
-_LIPSCHITZ_FACTOR = math.sqrt(3.0) / 2.0
 
 # Relative room, in cells, kept between an endpoint and the safety margin.
 _ENDPOINT_TOLERANCE = 1e-5
@@ -174,6 +170,11 @@ class Planner:
             return obstacles
         assert self._unknown is not None
         return ObstacleSet([*obstacles.items, *self._unknown.boxes()])
+
+    def solid(self, obstacles: Optional[ObstacleSet] = None) -> ObstacleSet:
+        """What a curve must keep gamma from: the planner's obstacles, or ``obstacles`` (a
+        newer map) with the unknown boxes when unknown space is occupied."""
+        return self._solid(obstacles)
 
     def _solid(self, obstacles: Optional[ObstacleSet]) -> ObstacleSet:
         """The planner's obstacles, or ``obstacles`` with the unknown boxes (kept for the
@@ -700,7 +701,10 @@ def _checked_unknown(unknown: Optional[UnknownSpace]) -> Optional[UnknownSpace]:
 def fallback_margin(config: PlannerConfig) -> float:
     """Margin of the conservative fallback grid [m]: gamma + delta * sqrt(3) / 2, on which the
     raw polyline itself keeps gamma."""
-    return config.planning_margin + _LIPSCHITZ_FACTOR * config.resolution
+    # A segment between two 26-neighbour nodes lies within delta * sqrt(3) / 2 of one of them
+    # and the obstacle distance is 1-Lipschitz, so on a grid inflated by this much the raw
+    # polyline itself keeps clearance >= gamma.
+    return config.planning_margin + HALF_CELL_DIAGONAL * config.resolution
 
 
 def certify_plan(result: PlanResult, obstacles: ObstacleSet, safety_margin: float,

@@ -22,6 +22,7 @@ from scipy.interpolate import CubicSpline, PPoly
 from uav_global_planner.core.clearance import (Certificate, certificate_cap, certify_pieces,
                                                Pieces, SampleGrid)
 from uav_global_planner.core.errors import NoValidPathError
+from uav_global_planner.core.grid import HALF_CELL_DIAGONAL
 from uav_global_planner.core.obstacles import ObstacleSet
 from uav_global_planner.core.result import RepairMethod
 
@@ -33,8 +34,6 @@ DEFAULT_KNOT_SPACING_FACTOR = 2.0
 DEFAULT_KNOT_SPACING_MIN = 1.0
 #: Violating knot intervals shorter than this (times delta) are straightened, not split.
 MIN_KNOT_GAP_FRACTION = 0.25
-#: Largest lower bound on clearance of the raw polyline below gamma, as a fraction of delta.
-POLYLINE_DEFICIT_FACTOR = math.sqrt(3.0) / 2.0
 #: Tolerance on leaving the bounds box [m]: nodes may sit on its faces.
 BOUNDS_TOLERANCE = 1e-9
 
@@ -267,7 +266,8 @@ def check_chain(chain: Chain, obstacles: ObstacleSet, gamma: float, delta: float
 
 def _no_path(layout: Layout, gap: int, clearance: float, gamma: float,
              delta: float) -> NoValidPathError:
-    deficit = POLYLINE_DEFICIT_FACTOR * delta
+    # Largest deficit of the raw polyline's clearance below gamma.
+    deficit = HALF_CELL_DIAGONAL * delta
     a = np.round(layout.vertices[gap], 4).tolist()
     b = np.round(layout.vertices[gap + 1], 4).tolist()
     where = ('touches or crosses an obstacle' if clearance <= 0.0
