@@ -112,7 +112,10 @@ def test_export_mission_writes_the_plan_in_force(world):
 @pytest.mark.parametrize('name, value, reason', [
     ('mission_end', 'fly', 'mission_end must be one of'),
     ('geodetic_origin', [95.0, 8.0, 400.0], 'geodetic_origin.lat'),
-    ('mission_acceptance_radius', -1.0, 'mission_acceptance_radius must be in'),
+    # The table's range is the parameter's: rclpy refuses below it, the table the open end.
+    ('mission_acceptance_radius', -1.0, 'Parameter mission_acceptance_radius out of range'),
+    ('mission_acceptance_radius', 0.0, 'mission_acceptance_radius must be in (0.0, 1000.0]'),
+    ('mission_tracking_allowance', 101.0, 'Parameter mission_tracking_allowance out of range'),
     ('mission_format', 'kml', 'mission_format must be one of')])
 def test_invalid_mission_parameters_are_refused(world, name, value, reason):
     node, planner, service, _ = world

@@ -22,26 +22,19 @@ The plan in force is the one latched on the node's ``plan``, ``unsmoothed_plan``
 (:meth:`~uav_global_planner.ros.node_in_force.PlanInForce.plan_for_export`): never a copy that a
 withdrawal has overtaken. The mission is built on the node's planning worker
 (:meth:`PlanHost.submit`) and certified against the newest map the node holds (with the unknown
-space when that is occupied); when the plan in force is withdrawn or replaced while the file is
-written, the file is removed and the export refused. The service callback awaits the answer
-without blocking the executor.
+space when that is occupied); the file is written only while that plan is still in force, and
+the export is refused when it was withdrawn or replaced meanwhile. The service callback awaits
+the answer without blocking the executor.
 
-Parameters (declared on the node; validated when set, other parameters are left to their owner):
-
-==============================  ============  =========================================
-``mission_file``                string        file to write ('' = none set)
-``mission_format``              string        ``qgc``, ``wpl``, or '' (from the extension)
-``mission_firmware``            string        ``px4`` or ``ardupilot``
-``mission_end``                 string        ``loiter``, ``land`` or ``rtl``
-``mission_acceptance_radius``   double [m]    the autopilot's acceptance radius R
-``mission_tracking_allowance``  double [m]    clearance added to gamma for tracking
-``mission_takeoff_height``      double [m]    take-off climb (lowered to the highest clear)
-``mission_rtl_altitude``        double [m]    return altitude above home for ``rtl``
-``geodetic_origin``             double[3]     [lat deg, lon deg, alt m AMSL] of the frame origin
-==============================  ============  =========================================
+Parameters (declared on the node from :data:`MISSION_PARAMETER_SPECS`, with their ranges;
+validated when set, other parameters are left to their owner): ``mission_file``,
+``mission_format`` and ``mission_<name>`` for each setting of the mission's table
+(:data:`~uav_global_planner.core.mission.settings.MISSION_SETTINGS`: ``acceptance_radius``,
+``tracking_allowance``, ``takeoff_height``, ``end``, ``rtl_altitude``, ``firmware``), and
+``geodetic_origin`` ([lat deg, lon deg, alt m AMSL] of the frame origin).
 """
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 import json
 import math
 import queue
@@ -58,43 +51,33 @@ from std_srvs.srv import Trigger
 from uav_global_planner.core.errors import InvalidInputError
 from uav_global_planner.core.geodesy import (GeodeticOrigin, MissingDependencyError,
                                              origin_from_sequence)
-from uav_global_planner.core.mission import (build_mission, END_ACTIONS, FIRMWARES,
-                                             format_from_path, FORMATS, MissionSettings,
-                                             UncertifiableMissionError, write_mission)
+from uav_global_planner.core.mission import (build_mission, format_from_path, FORMATS,
+                                             MissionSettings, UncertifiableMissionError,
+                                             write_mission)
+from uav_global_planner.core.mission.settings import MISSION_SETTINGS
+from uav_global_planner.core.settings import by_name, Kind, Setting
+from uav_global_planner.ros.parameters import descriptor, parameter_default
 
 #: Name of the service (relative to the node's namespace).
 EXPORT_SERVICE = 'export_mission'
 
-_DEFAULTS = MissionSettings()
-
-#: name -> (default, description); ``geodetic_origin`` has no default (declared by type).
-MISSION_PARAMETERS: Dict[str, Tuple[Any, str]] = {
-    'mission_file': ('', 'File the export_mission service writes (.plan: QGroundControl, '
-                         '.waypoints: QGC WPL 110); empty: not set.'),
-    'mission_format': ('', "Mission file format: qgc, wpl, or '' to tell it from the "
-                           'extension of mission_file.'),
-    'mission_firmware': (_DEFAULTS.firmware, 'Autopilot of the mission: px4 or ardupilot '
-                                             '(firmwareType, yaw convention, speed items).'),
-    'mission_end': (_DEFAULTS.end, 'After the goal: loiter (hold), land, or rtl (return to '
-                                   'launch at mission_rtl_altitude).'),
-    'mission_acceptance_radius': (_DEFAULTS.acceptance_radius,
-                                  'Waypoint acceptance radius R of the autopilot [m] (PX4 '
-                                  'NAV_ACC_RAD, ArduPilot WPNAV_RADIUS); turns within R are '
-                                  'certified.'),
-    'mission_tracking_allowance': (_DEFAULTS.tracking_allowance,
-                                   'Clearance added to gamma for the autopilot tracking error '
-                                   '[m]; legs and turns keep gamma + this.'),
-    'mission_takeoff_height': (_DEFAULTS.takeoff_height,
-                               'Take-off climb above the start [m]; lowered to the highest '
-                               'climb that keeps the clearance.'),
-    'mission_rtl_altitude': (_DEFAULTS.rtl_altitude,
-                             'Return altitude above home for mission_end rtl [m]; must equal '
-                             "the autopilot's RTL_RETURN_ALT / RTL_ALT."),
-}
+#: The node's mission parameters: the file, its format, and every setting of the mission's table
+#: (:data:`~uav_global_planner.core.mission.settings.MISSION_SETTINGS`) as ``mission_<name>``,
+#: declared with the table's description and range.
+MISSION_PARAMETER_SPECS: Tuple[Setting, ...] = (
+    Setting('mission_file', Kind.TEXT, '', 'mission file',
+            'File the export_mission service writes (.plan: QGroundControl, .waypoints: QGC WPL '
+            '110); empty: not set.', accepts="a path, or '' (not set)"),
+    Setting('mission_format', Kind.CHOICE, '', 'mission file format',
+            "Format of mission_file: qgc, wpl, or '' to tell it from the extension.",
+            choices=('',) + FORMATS, accepts="one of '' (from the extension), qgc, wpl"),
+) + tuple(replace(setting, name=f'mission_{setting.name}')
+          for setting in MISSION_SETTINGS if setting.node)
+_MISSION_SPECS: Dict[str, Setting] = by_name(MISSION_PARAMETER_SPECS)
 ORIGIN_PARAMETER = 'geodetic_origin'
 ORIGIN_DESCRIPTION = ('WGS84 origin of the planning frame (x east, y north, z up): [latitude '
                       'deg, longitude deg, altitude m above mean sea level of z = 0].')
-_OWNED = set(MISSION_PARAMETERS) | {ORIGIN_PARAMETER}
+_OWNED = set(_MISSION_SPECS) | {ORIGIN_PARAMETER}
 
 
 @dataclass(frozen=True)
@@ -124,25 +107,11 @@ def settings_from_values(values: Mapping[str, Any]) -> MissionSettings:
     InvalidInputError
         Naming the parameter.
     """
-    for name in ('mission_firmware', 'mission_end', 'mission_format'):
-        if not isinstance(values[name], str):
-            raise InvalidInputError(f'{name} must be a string, got {values[name]!r}')
-    if values['mission_format'] not in ('',) + FORMATS:
-        raise InvalidInputError(f"mission_format must be one of '', {', '.join(FORMATS)}, got "
-                                f"{values['mission_format']!r}")
-    if values['mission_end'] not in END_ACTIONS:
-        raise InvalidInputError(f'mission_end must be one of {", ".join(END_ACTIONS)}, got '
-                                f"{values['mission_end']!r}")
-    if values['mission_firmware'] not in FIRMWARES:
-        raise InvalidInputError(f'mission_firmware must be one of {", ".join(FIRMWARES)}, got '
-                                f"{values['mission_firmware']!r}")
+    for name in ('mission_file', 'mission_format'):
+        _MISSION_SPECS[name].check(values[name])
     try:
-        return MissionSettings(
-            acceptance_radius=values['mission_acceptance_radius'],
-            tracking_allowance=values['mission_tracking_allowance'],
-            takeoff_height=values['mission_takeoff_height'],
-            rtl_altitude=values['mission_rtl_altitude'], end=values['mission_end'],
-            firmware=values['mission_firmware'])
+        return MissionSettings(**{setting.name: values[f'mission_{setting.name}']
+                                  for setting in MISSION_SETTINGS if setting.node})
     except InvalidInputError as error:
         raise InvalidInputError(f'mission_{error}') from None
 
@@ -211,10 +180,9 @@ class MissionExportService:
         node = host.node
         self._node = node
         self._log = node.get_logger()
-        for name, (default, description) in MISSION_PARAMETERS.items():
-            if not node.has_parameter(name):
-                node.declare_parameter(name, default, ParameterDescriptor(
-                    name=name, description=description))
+        for spec in MISSION_PARAMETER_SPECS:
+            if not node.has_parameter(spec.name):
+                node.declare_parameter(spec.name, parameter_default(spec), descriptor(spec))
         if not node.has_parameter(ORIGIN_PARAMETER):
             node.declare_parameter(ORIGIN_PARAMETER, Parameter.Type.DOUBLE_ARRAY,
                                    ParameterDescriptor(
