@@ -47,20 +47,18 @@ kernel is private to the structure it serves.
 
 from dataclasses import dataclass
 import math
-import threading
 import time
 from typing import Dict, Hashable, Iterable, List, Mapping, Optional, Sequence, Tuple, Union
 
 import numpy as np
 from scipy import ndimage
-from scipy.spatial import cKDTree
 
 from uav_global_planner.core.config import PlannerConfig
 from uav_global_planner.core.errors import InvalidInputError
 from uav_global_planner.core.grid import VoxelGrid
 from uav_global_planner.core.inflation import (blocked_mask, Mask, reinflate_sparse,
                                                reinflate_tiles)
-from uav_global_planner.core.jit import JIT_ENABLED, njit
+from uav_global_planner.core.jit import njit
 from uav_global_planner.core.obstacles import Box, Obstacle, ObstacleSet, PointSet, Sphere
 from uav_global_planner.core.planner import fallback_margin
 from uav_global_planner.core.sparse_grid import choose_layout, SparseMask
@@ -93,17 +91,6 @@ _MIX2 = np.uint64(0x94D049BB133111EB)
 _SHIFT30 = np.uint64(30)
 _SHIFT27 = np.uint64(27)
 _SHIFT31 = np.uint64(31)
-
-
-def _mix(values: np.ndarray) -> np.ndarray:
-    """splitmix64 finaliser of a uint64 array (wrapping arithmetic)."""
-    z = values.copy()
-    z ^= z >> np.uint64(30)
-    z *= _MIX1
-    z ^= z >> np.uint64(27)
-    z *= _MIX2
-    z ^= z >> np.uint64(31)
-    return z
 
 
 @dataclass(frozen=True, eq=False)
@@ -213,7 +200,7 @@ class PointCells:
         self.changed_from_previous: Optional[np.ndarray] = None
         shape = tuple(int(d) for d in geometry.dims)
         coarse = tuple(d // COARSE_CELLS for d in shape)
-        if not (JIT_ENABLED and previous is not None and self._update(raw, previous)):
+        if not (previous is not None and self._update(raw, previous)):
             self._build(raw, shape, coarse)
         # The cloud as given, in its order, for comparing the next one with it (kept by
         # reference: the caller must not change the array afterwards).
@@ -227,8 +214,6 @@ class PointCells:
                 self._coarse_count == 0, metric='chessboard').astype(np.int64))
         else:
             self._coarse_ring = np.full(coarse, np.iinfo(np.int32).max, dtype=np.int64)
-        self._tree: Optional[cKDTree] = None
-        self._tree_lock = threading.Lock()
 
     def _build(self, raw: np.ndarray, shape: Tuple[int, ...],
                coarse: Tuple[int, ...]) -> None:
@@ -239,31 +224,18 @@ class PointCells:
         self._coarse_count = np.zeros(coarse, dtype=np.int64)
         # start[f + 1] counts the points of cell f, then the running sum makes it the end.
         start = np.zeros(count + 1, dtype=np.int64)
-        if JIT_ENABLED:
-            cells = np.empty(len(raw), dtype=np.int64)
-            fingerprint = np.empty(len(raw), dtype=np.uint64)
-            _index_points(raw, bits, geometry.origin, geometry.cell, geometry.dims,
-                          COARSE_CELLS, cells, fingerprint, self._coarse_count, start)
-        else:
-            cells = _cell_numbers(raw, geometry)
-            fingerprint = _mix(_mix(_mix(bits[:, 0] ^ _SEED) ^ bits[:, 1]) ^ bits[:, 2])
-            index = np.stack(np.unravel_index(cells, shape), axis=-1) // COARSE_CELLS
-            np.add.at(self._coarse_count, tuple(index.T), 1)
-            start[1:] = np.bincount(cells, minlength=count)
+        cells = np.empty(len(raw), dtype=np.int64)
+        fingerprint = np.empty(len(raw), dtype=np.uint64)
+        _index_points(raw, bits, geometry.origin, geometry.cell, geometry.dims,
+                      COARSE_CELLS, cells, fingerprint, self._coarse_count, start)
         np.cumsum(start, out=start)
         # A stable sort by cell: points keep their input order within a cell, so two clouds
         # from one producer usually compare equal point by point without further sorting.
         self.points = np.empty_like(raw)
         self._fingerprints = np.empty(len(raw), dtype=np.uint64)
         self._sorted_rows = np.empty(len(raw), dtype=np.int64)
-        if JIT_ENABLED:
-            _sort_into_cells(raw, cells, fingerprint, start, self.points, self._fingerprints,
-                             self._sorted_rows)
-        else:
-            order = np.argsort(cells, kind='stable')
-            self.points[...] = raw[order]
-            self._fingerprints[...] = fingerprint[order]
-            self._sorted_rows[...] = order
+        _sort_into_cells(raw, cells, fingerprint, start, self.points, self._fingerprints,
+                         self._sorted_rows)
         self._row_cells = cells
         self.start = start
 
@@ -350,22 +322,12 @@ class PointCells:
         flat = np.ascontiguousarray(np.asarray(queries, dtype=np.float64).reshape(-1, 3))
         if len(self.points) == 0:
             return np.full(len(flat), cap)
-        if not JIT_ENABLED:
-            return self._tree_distance(flat, cap)
         out = np.empty(len(flat))
         geometry = self.geometry
         _nearest_points(flat, self.points, self.start, self._coarse_count, self._coarse_ring,
                         geometry.origin, geometry.cell, geometry.dims, COARSE_CELLS,
                         float(cap), geometry.slack, out)
         return out
-
-    def _tree_distance(self, flat: np.ndarray, cap: float) -> np.ndarray:
-        """Without numba: scipy's KD-tree, built on first use."""
-        with self._tree_lock:
-            if self._tree is None:
-                self._tree = cKDTree(self.points)
-        nearest, _ = self._tree.query(flat, distance_upper_bound=cap)
-        return np.minimum(nearest, cap)
 
     def points_in(self, cells: np.ndarray) -> np.ndarray:
         """The points of some cells (flat cell numbers, each once), shape (K, 3)."""
@@ -436,15 +398,6 @@ def dilate_cells(flat: np.ndarray, dims: Union[Sequence[int], np.ndarray],
     near = (index[:, None, :] + offsets[None, :, :]).reshape(-1, 3)
     inside = np.all((near >= 0) & (near < np.asarray(shape)), axis=1)
     return np.unique(np.ravel_multi_index(tuple(near[inside].T), shape))
-
-
-def _cell_numbers(points: np.ndarray, geometry: CellGeometry) -> np.ndarray:
-    """Flat cell number of each point, points beyond the border in the border cells."""
-    dims = geometry.dims
-    scaled = (points - geometry.origin) / geometry.cell
-    # Clipped in floating point before the cast: far points must not overflow it.
-    index = np.floor(np.clip(scaled, 0.0, dims - 1)).astype(np.int64)
-    return (index[:, 0] * dims[1] + index[:, 1]) * dims[2] + index[:, 2]
 
 
 @njit
