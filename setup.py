@@ -53,12 +53,14 @@ setup(
             'uav-plan = uav_global_planner.cli.main:main',
             'planner_node = uav_global_planner.ros.planner_node:main',
             'scene_publisher = uav_global_planner.ros.scene_publisher:main',
+            'setpoint_follower = uav_global_planner.ros.follower_node:main',
             'uav-demo = uav_global_planner_tools.demo:main',
         ],
-        # Figures that the tools add to uav-plan bench (its --ros flag), so that the
-        # command-line tool runs them without importing the tools.
+        # Figures that the tools add to uav-plan bench (its --ros and --outdoor flags), so
+        # that the command-line tool runs them without importing the tools.
         'uav_global_planner.bench': [
             'ros = uav_global_planner_tools.latency_bench.uav_plan_bench:ros_figures',
+            'outdoor = uav_global_planner_tools.outdoor_bench:main',
         ],
     },
 )

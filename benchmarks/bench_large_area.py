@@ -8,7 +8,7 @@ Cases, each in a fresh process (its peak resident memory is its own, VmHWM of /p
 
 =============  ==================================================================================
 city           1 km x 1 km x 120 m at delta 0.5 m (2001 x 2001 x 241 = 965 M nodes), the 300
-               buildings of ``city1km`` (tools/outdoor_scenes.py), gamma 1 m: grid ready
+               buildings of ``city1km`` (tools: outdoor_scenes), gamma 1 m: grid ready
                (mask build and kernel warm-up), a 1.30 km crossing end to end with the default
                algorithm (first and second plan), peak RSS, bytes a node
 voxel_map      a dense-occupancy voxel map of 406^3 = 66.9 M nodes at 1 m, generated here
@@ -29,7 +29,6 @@ only, nothing here asserts a speed.
 """
 
 import argparse
-import importlib
 import json
 import math
 import os
@@ -51,15 +50,8 @@ from uav_global_planner.core.obstacles import Box, ObstacleSet, PointSet
 from uav_global_planner.core.planner import Planner
 from uav_global_planner.core.search import SearchWorkspace
 from uav_global_planner.core.sparse_grid import SparseMask
+from uav_global_planner_tools.outdoor_scenes import city1km_boxes, spheres_boxes_100m, town400
 
-ROOT = Path(__file__).resolve().parents[1]
-if str(ROOT) not in sys.path:
-    sys.path.insert(0, str(ROOT))
-# tools/ is not part of the package: the scene generators of this checkout.
-_SCENES = importlib.import_module('tools.outdoor_scenes')
-city1km_boxes = _SCENES.city1km_boxes
-spheres_boxes_100m = _SCENES.spheres_boxes_100m
-town400 = _SCENES.town400
 
 MB = 1e6
 

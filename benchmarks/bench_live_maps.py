@@ -28,7 +28,6 @@ of one scenario sharing its clock and records; its helpers are its own.
 """
 
 import argparse
-import importlib
 import json
 import math
 import os
@@ -53,21 +52,13 @@ from uav_global_planner.ros import conversions as conv
 from uav_global_planner.ros.background_node import BackgroundNode
 from uav_global_planner.ros.qos import (CLOUD_QOS, COMMAND_QOS, LATCHED_QOS, MONITOR_QOS,
                                         OBSTACLES_QOS, SENSOR_QOS)
+from uav_global_planner_tools import outdoor_scenes
 from uav_global_planner_tools.domains import choose_domain_id
 from uav_global_planner_tools.processes import (NodeProcess, NodeProcessError, planner_command,
                                                 ros_environment)
 
+
 REPO = Path(__file__).resolve().parents[1]
-
-
-def _outdoor_scenes():
-    """``tools/outdoor_scenes.py`` of this checkout (tools/ is not part of the package)."""
-    if str(REPO) not in sys.path:
-        sys.path.insert(0, str(REPO))
-    return importlib.import_module('tools.outdoor_scenes')
-
-
-outdoor_scenes = _outdoor_scenes()
 
 NAMESPACE = '/live_maps_bench'
 SPEED = 3.0          # vehicle speed [m/s]

@@ -18,9 +18,10 @@ def _run(command, repo_root, timeout=600) -> subprocess.CompletedProcess:
                           timeout=timeout)
 
 
-def test_uav_plan_bench_outdoor_runs_the_smallest_case(repo_root):
+def test_uav_plan_bench_outdoor_runs_the_smallest_case(tmp_path):
+    # Outside the source tree: the benchmark is installed with the tools, not read from it.
     run = _run([sys.executable, '-m', 'uav_global_planner.cli.main', 'bench', '--outdoor',
-                'wall_gap_0.2', '--json'], repo_root)
+                'wall_gap_0.2', '--json'], tmp_path)
     assert run.returncode == 0, run.stdout + run.stderr
     document = json.loads(run.stdout)
     assert document['machine']['cpus'] >= 1
@@ -65,3 +66,9 @@ def test_unknown_case_is_refused_with_the_list_of_cases(repo_root):
                repo_root, timeout=120)
     assert run.returncode == 2
     assert 'unknown case(s) no_such_case' in run.stderr and 'town400_adaptive' in run.stderr
+
+
+def test_uav_plan_bench_outdoor_refuses_an_unknown_case(tmp_path):
+    run = _run(['uav-plan', 'bench', '--outdoor', 'no_such_case'], tmp_path, timeout=120)
+    assert run.returncode == 2
+    assert 'unknown case(s) no_such_case' in run.stderr and 'Traceback' not in run.stderr

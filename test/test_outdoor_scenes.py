@@ -1,6 +1,5 @@
 """The outdoor scenes: reproducible files, free endpoints, streets, and the surface cloud."""
 
-import importlib
 from pathlib import Path
 import subprocess
 import sys
@@ -13,12 +12,9 @@ from uav_global_planner.core.config import PlannerConfig
 from uav_global_planner.core.obstacles import ObstacleSet
 from uav_global_planner.core.scene import find_scene, load_scene
 from uav_global_planner.core.terrain import HeightField
+from uav_global_planner_tools import outdoor_scenes as outdoor
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
-# tools/ sits beside the package, not in it.
-if str(REPO_ROOT) not in sys.path:
-    sys.path.insert(0, str(REPO_ROOT))
-outdoor = importlib.import_module('tools.outdoor_scenes')
 
 
 def test_shipped_files_are_what_the_generator_writes():

@@ -93,3 +93,15 @@ def test_installed_entry_points_name_the_tools(installed):
     assert 'uav-demo = uav_global_planner_tools.demo:main' in text
     assert '[uav_global_planner.bench]' in text
     assert 'ros = uav_global_planner_tools.latency_bench.uav_plan_bench:ros_figures' in text
+    assert 'outdoor = uav_global_planner_tools.outdoor_bench:main' in text
+
+
+def test_installed_uav_plan_bench_outdoor_needs_no_checkout(installed, tmp_path):
+    env = _outside_env(installed)
+    env.pop('UAV_PLANNER_DISABLE_JIT')  # a benchmark: the compiled kernels, as installed
+    run = subprocess.run([sys.executable, str(installed / 'bin' / 'uav-plan'), 'bench',
+                          '--outdoor', 'wall_gap_0.2', '--json'], cwd=tmp_path, env=env,
+                         capture_output=True, text=True, timeout=600)
+    assert run.returncode == 0, run.stdout + run.stderr
+    [case] = json.loads(run.stdout)['cases']
+    assert case['case'] == 'wall_gap_0.2' and case['first']['status'] == 'ok', case

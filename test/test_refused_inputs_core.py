@@ -26,8 +26,9 @@ After every case nothing has changed: the planner keeps its settings and obstacl
 the next valid request exactly as before; a scene document handed to ``parse_scene`` is not
 modified, and the valid scene still loads.
 
-One file, though long: the catalogue is one table that ``docs/refused_inputs.md`` is generated
-from; a split would scatter the rows a reader looks up by surface.
+One file, though long: the catalogue is one table that the docs build renders on
+``docs/refused_inputs.md`` (``docs/gen_tables.py``); a split would scatter the rows a reader
+looks up by surface.
 """
 
 import copy
@@ -149,6 +150,7 @@ TEST_DEM_HOLES = 'test_dem.py::test_map_frame_grid_refusals'
 TEST_DEM_HEADERS = 'test_dem.py::test_asc_header_refusals'
 TEST_DEM_GEOTIFF = 'test_dem.py::test_geotiff_refusals_name_the_file'
 THIS = 'test_fuzz_core.py::'
+TEST_COMMAND_LINE = 'test_cli_command_line.py::'
 
 CATALOGUE = (
     # ---------------------------------------------------------------- Planner.plan
@@ -566,7 +568,7 @@ CATALOGUE = (
          (MapFile('wide.npy', npy(np.vstack([BLOCK, [[100.0, 0.0, 0.0]]]))), {})),
     # ---------------------------------------------------------------- uav-plan plan FILE --json
     Case('cli_missing_file', CLI, 'a file that does not exist', '2 invalid_input',
-         'no such scene file or shipped scene', (None, None, [])),
+         'scene.yaml: no such scene file', (None, None, [])),
     Case('cli_empty_file', CLI, 'an empty file', '2 invalid_input', 'the scene file is empty',
          (None, b'', [])),
     Case('cli_not_yaml', CLI, 'text that is not YAML', '2 invalid_input', 'not valid YAML',
@@ -649,6 +651,57 @@ CATALOGUE = (
          (_with(('obstacles',), VALID_SCENE['obstacles'] + [{'type': 'points_file',
                                                              'path': 'empty.bt'}]),
           None, [], [MapFile('empty.bt', bt(EMPTY))])),
+    # ------------------------------------------------- uav-plan: scene names, values, memory
+    Case('cli_scene_path_named_like_a_shipped_scene', CLI,
+         'a path that does not exist, named like a shipped scene (.../paper_medium.yaml)',
+         '2 invalid_input', 'no such scene file; the shipped scene of that name is given by its '
+         'name alone: paper_medium', covered_by=f'{TEST_COMMAND_LINE}'
+         'test_a_missing_scene_path_is_refused_not_replaced_by_a_shipped_scene'),
+    Case('cli_scene_file_name_not_here', CLI,
+         'paper_medium.yaml with no such file in the current folder', '2 invalid_input',
+         'paper_medium.yaml: no such scene file',
+         covered_by=f'{TEST_COMMAND_LINE}test_text_that_names_a_path_must_be_a_file'),
+    Case('cli_scene_unknown_name', CLI, 'the name paper_mediun', '2 invalid_input',
+         'no such scene file or shipped scene (shipped scenes: airspace_demo, city1km',
+         covered_by=f'{TEST_COMMAND_LINE}test_an_unknown_name_lists_every_shipped_scene'),
+    Case('cli_scene_folder', CLI, 'a folder as the scene', '2 invalid_input',
+         'is a folder, not a scene file',
+         covered_by=f'{TEST_COMMAND_LINE}test_a_folder_is_not_a_scene_file'),
+    Case('cli_via_negative', CLI, '--via -1.5,1.5,1 (a value starting with a minus sign)',
+         '0 ok', 'accepted: read as the via-point, not as an option (path of',
+         (VALID_SCENE, None, ['--via', '-1.5,1.5,1'])),
+    Case('cli_via_negative_outside', CLI, '--via -50,100,40, outside the bounds',
+         '1 goal_outside_map', 'via-point 1 (end of leg 0) [-50.0, 100.0, 40.0] is outside '
+         'the bounds', (VALID_SCENE, None, ['--via', '-50,100,40'])),
+    Case('cli_option_negative_exponent', CLI, '--max-jerk -1e3', '2 invalid_input',
+         'max_jerk must be in (0.0, 10000.0], got -1000.0',
+         (VALID_SCENE, None, ['--max-jerk', '-1e3'])),
+    Case('cli_every_option_negative', CLI,
+         'every option of plan, compare, plot and export given -1.5e0', '2 invalid_input',
+         "the option's own refusal, never 'expected one argument'",
+         covered_by=f'{TEST_COMMAND_LINE}'
+         'test_every_option_reads_a_value_that_starts_with_a_minus_sign'),
+    Case('cli_origin_negative', CLI, 'export --origin -33.86,151.2,10 (south of the equator)',
+         '0 ok', 'accepted: the mission is placed at latitude -33.86 (home position)',
+         covered_by=f'{TEST_COMMAND_LINE}test_origin_with_a_negative_latitude_exports'),
+    Case('cli_image_without_format', CLI, 'plot -o out (no image extension)',
+         '2 invalid_input', '-o: out: the extension names no image format; use one of',
+         covered_by=f'{TEST_COMMAND_LINE}test_an_image_file_without_a_format_is_refused'),
+    Case('cli_bench_unknown_scene', CLI, 'bench paper_mediun; bench --ros-goals -5',
+         '2 invalid_input', 'paper_mediun: no such scene file or shipped scene',
+         covered_by=f'{TEST_COMMAND_LINE}test_bench_refuses_an_unknown_scene_and_a_goal_count_'
+         'below_one_before_measuring'),
+    Case('cli_grid_beyond_search', CLI, '--resolution 0.001 --max-voxels 100000000000',
+         '2 invalid_input', 'nodes: the search supports at most 2147483647',
+         (VALID_SCENE, None, ['--resolution', '0.001', '--max-voxels', '100000000000'])),
+    Case('cli_grid_beyond_memory', CLI, 'a grid whose mask and search records exceed the '
+         'memory available', '2 invalid_input', 'before the search, up to',
+         covered_by=f'{TEST_COMMAND_LINE}'
+         'test_a_grid_larger_than_the_memory_available_is_refused_before_it_is_built'),
+    Case('cli_search_out_of_memory', CLI, 'dijkstra on 223 M nodes under a 350 MB data limit',
+         '2 invalid_input', 'out of memory: grid of 222.9 M nodes (block-sparse)',
+         covered_by=f'{TEST_COMMAND_LINE}'
+         'test_a_search_that_runs_out_of_memory_is_an_error_not_a_killed_process'),
 )
 
 RUN_HERE = [case for case in CATALOGUE if not case.covered_by]
@@ -895,37 +948,3 @@ def test_cli_cases_in_real_processes(tmp_path):
     for case, process in running:
         stdout, stderr = process.communicate(timeout=300)
         _check_cli(case, process.returncode, stdout, stderr)
-
-
-_TEST_OF_SURFACE = {PLAN: 'test_plan_refuses_with_a_typed_status',
-                    CONFIG: 'test_set_config_refuses_and_keeps_the_previous_settings',
-                    OBSTACLES: 'test_malformed_obstacles_are_refused_and_change_nothing',
-                    SCENE: 'test_malformed_scene_is_refused_with_its_key_path',
-                    FILE: 'test_unreadable_scene_file_is_refused',
-                    MAP: 'test_map_file_that_cannot_be_right_is_refused',
-                    CLI: 'test_cli_plan_json_exit_code_status_and_reason'}
-
-
-def catalogue_markdown() -> str:
-    """The catalogue as a Markdown table: case, what the user sees, and the test that runs it."""
-    lines = ['| case | what the user sees | test |', '|---|---|---|']
-    for case in CATALOGUE:
-        if case.surface == PLAN:
-            seen = f'`{case.expected}`: {case.reason}'
-        elif case.surface == CLI:
-            code, status = case.expected.split()
-            seen = f'exit {code}, `{status}`: {case.reason}'
-        elif case.expected == 'ok':
-            seen = case.reason
-        else:
-            seen = f'`InvalidInputError`: {case.reason}'
-        test = case.covered_by or (f'test_refused_inputs_core.py::'
-                                   f'{_TEST_OF_SURFACE[case.surface]}[{case.case_id}]')
-        lines.append(f'| {case.surface}: {case.given} | {seen} | `{test}` |')
-    return '\n'.join(lines)
-
-
-def test_catalogue_renders_as_markdown():
-    table = catalogue_markdown().splitlines()
-    assert len(table) == len(CATALOGUE) + 2
-    assert all(line.count(' | ') == 2 for line in table[2:])

@@ -4,15 +4,15 @@ Run from anywhere inside the project's environment::
 
     source scripts/venv.sh && python tools/make_scenes.py [--out DIR] [--check]
 
-The geometry comes from ``tools/outdoor_scenes.py`` (fixed seeds, coordinates rounded so the
-text reproduces them exactly), so the files are the same on every run. Each file is parsed back
+The geometry comes from :mod:`uav_global_planner_tools.outdoor_scenes` (fixed seeds,
+coordinates rounded so the text reproduces them exactly), so the files are the same on every
+run. Each file is parsed back
 with the package's scene loader and compared with the generated geometry, and its start and
 goal are checked to keep more than gamma from every obstacle (wall_gap: more than 3 m too).
 ``--check`` writes nothing and exits 1 when a file in place differs from what would be written.
 """
 
 import argparse
-import importlib
 from pathlib import Path
 import sys
 from typing import List, Optional
@@ -24,17 +24,11 @@ from uav_global_planner.core.config import PlannerConfig
 from uav_global_planner.core.errors import InvalidInputError
 from uav_global_planner.core.grid import DEFAULT_MAX_VOXELS
 from uav_global_planner.core.scene import parse_scene
+from uav_global_planner_tools import outdoor_scenes
 
 ROOT = Path(__file__).resolve().parents[1]
 # Safety margins [m] each scene's start and goal must keep, beyond the scene's own.
 EXTRA_MARGINS = {'wall_gap': (3.0,)}
-
-
-def generators():
-    """``tools/outdoor_scenes.py``, importable however this script was started."""
-    if str(ROOT) not in sys.path:
-        sys.path.insert(0, str(ROOT))
-    return importlib.import_module('tools.outdoor_scenes')
 
 
 def scene_files_take_max_voxels() -> bool:
@@ -58,8 +52,7 @@ def render(scene, with_max_voxels: bool) -> str:
         When the parsed file differs from the generated geometry, or its start or goal is within
         a margin it must keep.
     """
-    tools = generators()
-    text = tools.scene_yaml(scene, with_max_voxels)
+    text = outdoor_scenes.scene_yaml(scene, with_max_voxels)
     base = PlannerConfig(max_voxels=max(scene.max_voxels or 0, DEFAULT_MAX_VOXELS))
     parsed = parse_scene(yaml.safe_load(text), name=scene.name, base=base)
     obstacles = parsed.obstacles
@@ -84,10 +77,9 @@ def main(argv: Optional[List[str]] = None) -> int:
     parser.add_argument('--check', action='store_true',
                         help='compare with the files in place instead of writing them')
     args = parser.parse_args(argv)
-    tools = generators()
     with_max_voxels = scene_files_take_max_voxels()
     stale = []
-    for name, make in tools.SHIPPED.items():
+    for name, make in outdoor_scenes.SHIPPED.items():
         scene = make()
         text = render(scene, with_max_voxels)
         path = args.out / f'{name}.yaml'

@@ -7,28 +7,34 @@ node's peak memory, from the function registered as ``ros`` in the entry-point g
 :data:`BENCH_ENTRY_POINTS` (the ROS latency benchmark of ``uav_global_planner_tools`` registers
 itself there; this module imports neither it nor rclpy, so the tool works without ROS). With
 ``--outdoor``, the per-stage figures of the outdoor scenes (town400, city1km, wall_gap, the town
-as a point cloud, a 99 M-node search grid) come from ``benchmarks/bench_outdoor.py`` of the
-source tree instead; scene names given then select its cases. Figures only: nothing here
-asserts a speed.
+as a point cloud, a 99 M-node search grid) come instead from the function registered as
+``outdoor`` in the same group (the outdoor benchmark of ``uav_global_planner_tools``); scene
+names given then select its cases. Figures only: nothing here asserts a speed.
 """
 
 import argparse
 from importlib import metadata
 import json
-from pathlib import Path
 import resource
 import statistics
 import subprocess
 import sys
 import time
-from typing import Any, Dict, List, Optional, Sequence, Tuple
+from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
 
+from uav_global_planner.cli.options import HelpFormatter
 from uav_global_planner.cli.report import finite_or_none, format_table
 from uav_global_planner.core.config import ALGORITHMS
+from uav_global_planner.core.errors import InvalidInputError
 from uav_global_planner.core.grid import VoxelGrid
 from uav_global_planner.core.inflation import blocked_mask
 from uav_global_planner.core.planner import Planner
 from uav_global_planner.core.scene import find_scene, load_scene, shipped_scenes
+
+_EXIT_CODES = ('exit codes:\n'
+               '  0  the figures were printed\n'
+               '  1  a benchmark failed, or the one asked for is not installed\n'
+               '  2  invalid options or unknown outdoor case')
 
 # Repeat each measurement until this much time was spent on it [s] (at least 3, at most 50 runs).
 _TIME_PER_FIGURE_S = 2.0
@@ -36,12 +42,11 @@ _TIME_PER_FIGURE_S = 2.0
 # Shipped scenes measured by --outdoor (per stage, one algorithm or two), not by the table of
 # every algorithm: Dijkstra alone would take minutes on them.
 _OUTDOOR_SCENES = ('town400', 'city1km', 'wall_gap')
-# The outdoor benchmark script, in a source checkout.
-_OUTDOOR_SCRIPT = Path(__file__).resolve().parents[2] / 'benchmarks' / 'bench_outdoor.py'
 
 
-def _median_runs(run, budget_s: float = _TIME_PER_FIGURE_S, most: int = 50) -> List[Any]:
-    results = []
+def _median_runs(run: Callable[[], Any], budget_s: float = _TIME_PER_FIGURE_S,
+                 most: int = 50) -> List[Any]:
+    results: List[Any] = []
     started = time.perf_counter()
     while len(results) < 3 or (
             len(results) < most and time.perf_counter() - started < budget_s):
@@ -129,6 +134,22 @@ def print_report(scenes: List[Dict[str, Any]], out=None) -> None:
 BENCH_ENTRY_POINTS = 'uav_global_planner.bench'
 
 
+def _registered(name: str) -> Any:
+    """The function registered as ``name`` in :data:`BENCH_ENTRY_POINTS`.
+
+    Raises
+    ------
+    RuntimeError
+        When no installed package registers it.
+    """
+    found = [entry for entry in metadata.entry_points(group=BENCH_ENTRY_POINTS)
+             if entry.name == name]
+    if not found:
+        raise RuntimeError(f'no {name} benchmark installed (entry point "{name}" in '
+                           f'{BENCH_ENTRY_POINTS}; pip install the package with its tools)')
+    return found[0].load()
+
+
 def measure_ros(options: Sequence[str] = ()) -> Tuple[Dict[str, Any], str]:
     """The ROS-side figures and their tables, from the registered ``ros`` benchmark.
 
@@ -142,16 +163,11 @@ def measure_ros(options: Sequence[str] = ()) -> Tuple[Dict[str, Any], str]:
     RuntimeError
         When no ROS benchmark is installed, or it fails (ROS missing, the node not answering).
     """
-    found = [entry for entry in metadata.entry_points(group=BENCH_ENTRY_POINTS)
-             if entry.name == 'ros']
-    if not found:
-        raise RuntimeError(f'no ROS benchmark installed (entry point "ros" in '
-                           f'{BENCH_ENTRY_POINTS}; pip install the package with its tools)')
-    return found[0].load()(list(options))
+    return _registered('ros')(list(options))
 
 
 def run_outdoor(cases: Sequence[str], as_json: bool) -> int:
-    """Run the outdoor benchmark script, its output passed through; its exit code.
+    """Run the registered outdoor benchmark (its output printed as it comes); its exit code.
 
     Parameters
     ----------
@@ -160,17 +176,22 @@ def run_outdoor(cases: Sequence[str], as_json: bool) -> int:
     as_json : bool
         Ask for one JSON document.
     """
-    if not _OUTDOOR_SCRIPT.is_file():
-        print(f'uav-plan bench: --outdoor needs a source checkout ({_OUTDOOR_SCRIPT} is '
-              'missing)', file=sys.stderr)
-        return 2
-    command = [sys.executable, str(_OUTDOOR_SCRIPT)] + [f'--only={name}' for name in cases]
-    return subprocess.run(command + (['--json'] if as_json else []), check=False).returncode
+    try:
+        outdoor = _registered('outdoor')
+    except RuntimeError as error:
+        print(f'uav-plan bench: {error}', file=sys.stderr)
+        return 1
+    try:
+        return int(outdoor([f'--only={name}' for name in cases]
+                           + (['--json'] if as_json else [])))
+    except SystemExit as stop:  # its argparse refusing a case: exit code 2, reason printed
+        return stop.code if isinstance(stop.code, int) else 2
 
 
 def main(argv: Optional[List[str]] = None) -> int:
     """Entry point of ``uav-plan bench`` (and of the per-scene worker processes)."""
-    parser = argparse.ArgumentParser(prog='uav-plan bench', description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(prog='uav-plan bench', description=__doc__.splitlines()[0],
+                                     formatter_class=HelpFormatter, epilog=_EXIT_CODES)
     parser.add_argument('scenes', nargs='*', help='scene names or files (default: all shipped)')
     parser.add_argument('--json', action='store_true', help='print one JSON document')
     parser.add_argument('--ros', action='store_true',
@@ -179,8 +200,9 @@ def main(argv: Optional[List[str]] = None) -> int:
     parser.add_argument('--ros-goals', type=int, default=50, metavar='N',
                         help='goals per scene of the ROS latency figures (default 50)')
     parser.add_argument('--outdoor', action='store_true',
-                        help='per-stage figures of the outdoor scenes instead '
-                             '(benchmarks/bench_outdoor.py; scenes given select its cases)')
+                        help='per-stage figures of the outdoor scenes instead (town400, '
+                             'city1km, wall_gap, the town as a point cloud, a 99 M-node search '
+                             'grid; scenes given select its cases)')
     parser.add_argument('--one-scene', help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.one_scene:
@@ -188,8 +210,15 @@ def main(argv: Optional[List[str]] = None) -> int:
         return 0
     if args.outdoor:
         return run_outdoor(args.scenes, args.json)
+    if args.ros_goals < 1:
+        parser.error(f'argument --ros-goals: must be >= 1, got {args.ros_goals}')
     names = args.scenes or [path.stem for path in shipped_scenes()
                             if path.stem not in _OUTDOOR_SCENES]
+    for name in names:
+        try:
+            find_scene(name)
+        except InvalidInputError as error:
+            parser.error(str(error))
     figures = [_measure_in_subprocess(name) for name in names]
     if not args.json:
         print_report(figures)

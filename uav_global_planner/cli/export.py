@@ -19,7 +19,8 @@ from typing import Any, Callable, Dict, Iterator, List, Optional, Tuple
 
 import numpy as np
 
-from uav_global_planner.core.config import ALGORITHMS, validate_config
+from uav_global_planner.cli.options import add_algorithm_option
+from uav_global_planner.core.config import validate_config
 from uav_global_planner.core.errors import InvalidInputError
 from uav_global_planner.core.geodesy import GeodeticOrigin, MissingDependencyError, parse_origin
 from uav_global_planner.core.mission import (build_mission, END_ACTIONS, FIRMWARES,
@@ -62,10 +63,11 @@ def add_export_command(commands: Any, add_scene_options: SceneOptions) -> None:
     parser.add_argument('--from-plan', metavar='JSON',
                         help='take the route of a saved "uav-plan plan --json" result instead '
                         'of planning')
-    parser.add_argument('--algorithm', choices=ALGORITHMS, default='adaptive')
+    add_algorithm_option(parser)
     parser.add_argument('--origin', metavar='LAT,LON,ALT',
                         help='WGS84 latitude, longitude [deg] and altitude AMSL [m] of the map '
-                        "frame's origin (default: the scene's geodetic_origin)")
+                        "frame's origin, e.g. --origin -33.86,151.2,10 (default: the scene's "
+                        'geodetic_origin)')
     parser.add_argument('--firmware', choices=FIRMWARES,
                         help='autopilot: .plan firmwareType, yaw and speed items (default px4 '
                         'for qgc, ardupilot for wpl)')

@@ -1,7 +1,8 @@
 """``uav-plan``: plan offline from a scene file, compare the algorithms, draw the paths.
 
 Exit codes: 0 when the plan succeeded, 1 for a planning failure (no path, occupied or outside
-start or goal, timeout), 2 for invalid input (scene file, options).
+start or goal, timeout), 2 for invalid input (scene file, options, a plan larger than the memory
+the machine has available). ``--help`` of every command lists them.
 """
 
 import argparse
@@ -9,18 +10,23 @@ from dataclasses import replace
 import json
 import math
 import sys
-from typing import Any, Callable, List, Optional, Tuple
+from typing import Any, Callable, List, NoReturn, Optional, Tuple
 
 import numpy as np
 
 from uav_global_planner.cli.compare import compare_algorithms
 from uav_global_planner.cli.export import add_export_command, run_export
+from uav_global_planner.cli.memory import (allowance_bytes, check as check_memory, estimate,
+                                           gigabytes, limited, MemoryLimitError,
+                                           SEARCH_MAX_NODES)
+from uav_global_planner.cli.options import (add_algorithm_option, check_image_file, EXIT_CODES,
+                                            HelpFormatter, join_negative_values, scene_help)
 from uav_global_planner.cli.report import (admission_lines, admission_to_dict, finite_or_none,
                                            format_summary, format_table, map_report_lines,
                                            result_to_dict)
 from uav_global_planner.core.airspace import Airspace, load_geofence
 from uav_global_planner.core.budget import PlanBudget, PlanStage
-from uav_global_planner.core.config import ALGORITHMS, validate_config
+from uav_global_planner.core.config import validate_config
 from uav_global_planner.core.errors import InvalidInputError, PlanningError
 from uav_global_planner.core.mapfiles import load_map_files
 from uav_global_planner.core.motion_limits import MotionLimits
@@ -37,8 +43,11 @@ EXIT_OK = 0
 EXIT_PLAN_FAILED = 1
 EXIT_INVALID_INPUT = 2
 
-# Grids from this many nodes up are announced on stderr before they are built.
+# Grids from this many nodes up are announced on stderr, with their memory, before they are built.
 _ANNOUNCE_GRID_NODES = 10_000_000
+# How to shrink a plan that does not fit into memory.
+_MEMORY_FIX = ('raise --resolution or shrink the bounds (--max-voxels only lifts the node cap), '
+               'or use an algorithm that reaches fewer nodes (adaptive, octile)')
 
 
 class _UsageError(Exception):
@@ -61,10 +70,16 @@ class _UsageError(Exception):
 class _Parser(argparse.ArgumentParser):
     """An argument parser that raises instead of exiting, so ``plan --json`` can answer in JSON.
 
-    Sub-command parsers are made of the same class.
+    Sub-command parsers are made of the same class; unless told otherwise, each shows every
+    option's default and the exit codes in its help.
     """
 
-    def error(self, message: str) -> None:
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        kwargs.setdefault('formatter_class', HelpFormatter)
+        kwargs.setdefault('epilog', EXIT_CODES)
+        super().__init__(*args, **kwargs)
+
+    def error(self, message: str) -> NoReturn:
         """Raise :class:`_UsageError` (argparse's hook; the default prints and exits 2)."""
         raise _UsageError(self, message)
 
@@ -78,15 +93,14 @@ def _triple(text: str) -> List[float]:
 
 
 def _add_scene_options(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument('scene', help='scene YAML file, or the name of a shipped scene '
-                        '(paper_medium, paper_high, dense60_mid, dense60_fine)')
+    parser.add_argument('scene', help=scene_help())
     _add_setting_flags(parser)
     parser.add_argument('--map', action='append', default=[], metavar='FILE',
                         help='add the occupied points of a map file (.pcd, .ply, .las, .laz, .bt, '
                         '.npy); repeatable')
     parser.add_argument('--via', action='append', default=[], metavar='X,Y,Z', type=_triple,
-                        help='a via-point [m] passed through exactly, in order; repeatable '
-                        "(replaces the scene's via list)")
+                        help='a via-point [m] passed through exactly, in order, e.g. '
+                        "--via -50,100,40; repeatable (replaces the scene's via list)")
     parser.add_argument('--terrain', metavar='FILE',
                         help='the ground as a digital elevation model: a GeoTIFF (placed with '
                         "the scene's geodetic_origin) or an ESRI ASCII grid .asc in the map "
@@ -150,7 +164,7 @@ def _parser() -> argparse.ArgumentParser:
 
     plan = commands.add_parser('plan', help='plan once and print the result')
     _add_scene_options(plan)
-    plan.add_argument('--algorithm', choices=ALGORITHMS, default='adaptive')
+    add_algorithm_option(plan)
     plan.add_argument('--json', action='store_true', help='print one JSON object')
 
     compare = commands.add_parser('compare', help="the paper's table: every algorithm")
@@ -162,10 +176,12 @@ def _parser() -> argparse.ArgumentParser:
 
     commands.add_parser('bench', help='performance figures of every shipped scene '
                         '(uav-plan bench --help)', add_help=False)
+    commands.add_parser('fleet', help="plan and deconflict a fleet's missions on Ray "
+                        '(uav-plan fleet --help)', add_help=False)
 
     plot = commands.add_parser('plot', help='draw the raw and the smoothed path in 3D')
     _add_scene_options(plot)
-    plot.add_argument('--algorithm', choices=ALGORITHMS, default='adaptive')
+    add_algorithm_option(plot)
     plot.add_argument('-o', '--output', metavar='PNG',
                       help='oblique, top and side views of the scene and the paths')
     plot.add_argument('--html', metavar='FILE',
@@ -276,11 +292,6 @@ def _progress_to_stderr(stage: PlanStage, elapsed_s: float, budget_s: float) -> 
 
 
 def _run_plan(args: argparse.Namespace, scene: Scene) -> int:
-    nodes = int(np.prod(np.floor((np.asarray(scene.config.bounds_max)
-                                  - np.asarray(scene.config.bounds_min))
-                                 / scene.config.resolution) + 1))
-    if nodes >= _ANNOUNCE_GRID_NODES:
-        print(f'planning: grid build of {nodes / 1e6:.0f} M nodes', file=sys.stderr, flush=True)
     # One budget from the grid build on: max_planning_time bounds the whole plan.
     budget = PlanBudget(scene.config.max_planning_time, progress=_progress_to_stderr)
     planner, ready = _warm_planner(scene, budget)
@@ -301,6 +312,7 @@ def _run_plan(args: argparse.Namespace, scene: Scene) -> int:
 def _run_compare(args: argparse.Namespace, scene: Scene) -> int:
     if args.repeats < 1:
         raise InvalidInputError(f'--repeats must be >= 1, got {args.repeats}')
+    check_image_file('--plot', args.plot)
     rows = compare_algorithms(scene, repeats=args.repeats)
     if len(scene.airspace):
         # The unconstrained optimum beside the fenced plans: what the geofence costs.
@@ -357,6 +369,8 @@ def _run_plot(args: argparse.Namespace, scene: Scene) -> int:
     from uav_global_planner.cli.plotting import plot_scene_html, plot_scene_paths
     if not args.output and not args.html and not args.profile:
         raise InvalidInputError('plot needs -o PNG, --html FILE, --profile PNG or more')
+    check_image_file('-o', args.output)
+    check_image_file('--profile', args.profile)
     budget = PlanBudget(scene.config.max_planning_time, progress=_progress_to_stderr)
     planner, ready = _warm_planner(scene, budget)
     result, admissions = _plan_admitted(planner, scene, args.algorithm, ready, budget=budget)
@@ -387,10 +401,14 @@ def _run_plot(args: argparse.Namespace, scene: Scene) -> int:
 
 def main(argv: Optional[List[str]] = None) -> int:
     """Entry point of ``uav-plan``; returns the process exit code."""
-    argv = sys.argv[1:] if argv is None else argv
+    # Values such as --via -50,100,40 are read as values, not as options.
+    argv = join_negative_values(sys.argv[1:] if argv is None else argv)
     if argv[:1] == ['bench']:
         from uav_global_planner.cli.bench import main as bench_main
         return bench_main(argv[1:])
+    if argv[:1] == ['fleet']:
+        from uav_global_planner.cli.fleet import main as fleet_main
+        return fleet_main(argv[1:])
     parser = _parser()
     try:
         args = parser.parse_args(argv)
@@ -408,13 +426,36 @@ def main(argv: Optional[List[str]] = None) -> int:
         scene = with_ground(scene, scene.terrain)
         runner = {'plan': _run_plan, 'compare': _run_compare, 'plot': _run_plot,
                   'export': run_export}[args.command]
-        return runner(args, scene)
-    except InvalidInputError as error:
+        allowance = _memory_allowance(scene)
+        try:
+            with limited(allowance):
+                return runner(args, scene)
+        except MemoryError:
+            raise MemoryLimitError(
+                f'out of memory: {estimate(scene.config, scene.obstacles).describe()}; the '
+                f'plan needed more than the {gigabytes(allowance or 0)} available: '
+                f'{_MEMORY_FIX}') from None
+    except (InvalidInputError, MemoryLimitError) as error:
         if getattr(args, 'json', False) and args.command == 'plan':
             _print_invalid_json(str(error), args.algorithm)
         else:
             print(f'uav-plan: error: {error}', file=sys.stderr)
         return EXIT_INVALID_INPUT
+
+
+def _memory_allowance(scene: Scene) -> Optional[int]:
+    """What the plan may allocate [bytes] (None: not known), after refusing a grid larger than
+    that; a large grid is announced on stderr with its memory."""
+    figures = estimate(scene.config, scene.obstacles)
+    if figures.nodes > SEARCH_MAX_NODES:
+        raise InvalidInputError(f'grid of {figures.nodes:.3g} nodes: the search supports at most '
+                                f'{SEARCH_MAX_NODES}; raise --resolution or shrink the bounds')
+    allowance = allowance_bytes()
+    check_memory(figures, allowance, _MEMORY_FIX)
+    if figures.nodes >= _ANNOUNCE_GRID_NODES:
+        room = f'; {gigabytes(allowance)} available' if allowance is not None else ''
+        print(f'planning: {figures.describe()}{room}', file=sys.stderr, flush=True)
+    return allowance
 
 
 def _print_invalid_json(message: str, algorithm: Optional[str]) -> None:

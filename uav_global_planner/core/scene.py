@@ -472,20 +472,34 @@ def shipped_scene_dirs() -> List[Path]:
 def find_scene(name_or_path: Union[str, Path]) -> Path:
     """Resolve a scene file path, or the name of a shipped scene such as ``paper_medium``.
 
+    A shipped scene is found by its bare name only. Text that names a path (it holds a folder
+    separator or ends in ``.yaml`` / ``.yml``) is a file that must exist: a mistyped path is
+    refused, never replaced by a shipped scene of the same name.
+
     Raises
     ------
     InvalidInputError
-        When neither a file nor a shipped scene of that name exists.
+        When the file does not exist (or is a folder), or the name is no shipped scene; the
+        message lists the shipped scenes.
     """
     candidate = Path(name_or_path)
     if candidate.is_file():
         return candidate
-    stem = candidate.name[:-5] if candidate.name.endswith('.yaml') else candidate.name
+    text = str(name_or_path)
+    if any(sep in text for sep in ('/', '\\')) or candidate.suffix in ('.yaml', '.yml'):
+        if candidate.is_dir():
+            raise InvalidInputError(f'{text}: is a folder, not a scene file')
+        shipped = [path for path in shipped_scenes() if path.stem == candidate.stem]
+        hint = (f'; the shipped scene of that name is given by its name alone: '
+                f'{candidate.stem}' if shipped else '')
+        raise InvalidInputError(f'{text}: no such scene file{hint}')
     for folder in shipped_scene_dirs():
-        shipped = folder / f'{stem}.yaml'
-        if shipped.is_file():
-            return shipped
-    raise InvalidInputError(f'{name_or_path}: no such scene file or shipped scene')
+        shipped_file = folder / f'{text}.yaml'
+        if shipped_file.is_file():
+            return shipped_file
+    names = ', '.join(path.stem for path in shipped_scenes())
+    raise InvalidInputError(f'{text}: no such scene file or shipped scene (shipped scenes: '
+                            f'{names})')
 
 
 def shipped_scenes() -> List[Path]:
