@@ -40,6 +40,8 @@ setup(
                     'flight': ['rotorpy'],
                     # A fleet's missions planned in parallel on Ray (uav-plan fleet).
                     'fleet': ['ray'],
+                    # setpoint_follower --mavlink (ArduPilot, MAVSDK, PX4 over MAVLink).
+                    'mavlink': ['pymavlink'],
                     # The documentation in docs/ (Sphinx with MyST).
                     'docs': ['sphinx', 'myst-parser', 'furo']},
     # The shipped scenes are read as files (importlib.resources paths), so never as a zip.
