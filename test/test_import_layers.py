@@ -5,15 +5,16 @@ functions included, relative imports resolved), and so is every string that name
 modules outside a docstring (``python -m ...``, ``importlib.import_module(...)``), since running
 a module is a dependency too. The layers and what each may not use:
 
-=======  ===================================  ==============================================
-layer    modules                              must not use
-=======  ===================================  ==============================================
-core     uav_global_planner.core (and the     ros, cli, tools, rclpy or any ROS package
-         package's ``__init__``)
-ros      uav_global_planner.ros               cli, tools
-cli      uav_global_planner.cli               ros, tools, rclpy or any ROS package
-tools    uav_global_planner_tools             (anything)
-=======  ===================================  ==============================================
+=========  ===================================  ==============================================
+layer      modules                              must not use
+=========  ===================================  ==============================================
+core       uav_global_planner.core (and the     ros, cli, tools, fleet_ray, rclpy or any ROS
+           package's ``__init__``)              package
+ros        uav_global_planner.ros               cli, tools
+cli        uav_global_planner.cli               ros, tools, rclpy or any ROS package
+fleet_ray  uav_global_planner.fleet_ray         ros, cli, tools, rclpy or any ROS package
+tools      uav_global_planner_tools             (anything)
+=========  ===================================  ==============================================
 """
 
 import ast
@@ -30,9 +31,10 @@ TOOLS = 'uav_global_planner_tools'
 ROS = 'ros-packages'
 
 #: Layer -> the layers (and ROS itself) it must not use.
-FORBIDDEN = {'core': {'ros', 'cli', 'tools', ROS},
+FORBIDDEN = {'core': {'ros', 'cli', 'tools', 'fleet_ray', ROS},
              'ros': {'cli', 'tools'},
              'cli': {'ros', 'tools', ROS},
+             'fleet_ray': {'ros', 'cli', 'tools', ROS},
              'tools': set()}
 
 # ROS Python packages, when the ament index of this environment does not list them.
@@ -60,7 +62,7 @@ def layer_of(module: str, ros_packages: Set[str]) -> Optional[str]:
     if parts[0] == LIBRARY:
         if len(parts) == 1 or parts[1] in ('core', 'config', '__init__'):
             return 'core'
-        if parts[1] in ('ros', 'cli'):
+        if parts[1] in ('ros', 'cli', 'fleet_ray'):
             return parts[1]
         return 'unknown'
     if parts[0] in ros_packages or parts[0] in _ROS_NAMES or parts[0].endswith(_ROS_SUFFIXES):
