@@ -48,7 +48,7 @@ kernel is private to the structure it serves.
 from dataclasses import dataclass
 import math
 import time
-from typing import Dict, Hashable, Iterable, List, Mapping, Optional, Sequence, Tuple, Union
+from typing import Any, Dict, Hashable, Iterable, List, Mapping, Optional, Sequence, Tuple, Union
 
 import numpy as np
 from scipy import ndimage
@@ -803,7 +803,7 @@ class MaskBuffers:
 
     def write(self, obstacles: ObstacleSet, version: int, changed: Optional[np.ndarray],
               layers: Sequence[PointCells] = (),
-              held: Optional[np.ndarray] = None) -> Tuple[Mask, MaskUpdate]:
+              held: Optional[Mask] = None) -> Tuple[Mask, MaskUpdate]:
         """Write the mask of ``obstacles`` (map ``version``) and make it the newest.
 
         Parameters
@@ -816,7 +816,7 @@ class MaskBuffers:
             from the newest mask; None: any (a full rebuild).
         layers : sequence of PointCells
             The point layers of ``obstacles`` (their points are gathered tile by tile).
-        held : numpy.ndarray, optional
+        held : numpy.ndarray or SparseMask, optional
             A mask a reader still uses; it is not written.
 
         Returns
@@ -1036,25 +1036,26 @@ class LiveMapBuilder:
         """The last map built (None before the first)."""
         return self._newest
 
-    def update(self, shapes: Optional[Mapping[Hashable, Obstacle]] = None, cloud=UNCHANGED,
-               config: Optional[PlannerConfig] = None, held: Optional[np.ndarray] = None,
-               give_cloud: bool = False, held_fallback: Optional[np.ndarray] = None) -> LiveMap:
+    def update(self, shapes: Optional[Mapping[Any, Obstacle]] = None, cloud=UNCHANGED,
+               config: Optional[PlannerConfig] = None, held: Optional[Mask] = None,
+               give_cloud: bool = False, held_fallback: Optional[Mask] = None) -> LiveMap:
         """Apply an update and return the map it gives.
 
         Parameters
         ----------
         shapes : mapping of key to Sphere or Box, optional
-            Every shape now, keyed (for example by marker (ns, id)); None keeps them.
+            Every shape now, keyed by any hashable (for example by marker (ns, id)); None
+            keeps them.
         cloud : numpy.ndarray of shape (M, 3), None or UNCHANGED
             The newest cloud (replacing the last one), None for no cloud, or UNCHANGED.
         config : PlannerConfig, optional
             New settings; a new grid or margin rebuilds the mask (and a new grid the indexes).
-        held : numpy.ndarray, optional
+        held : numpy.ndarray or SparseMask, optional
             The mask a reader still uses (never written).
         give_cloud : bool
             The caller hands ``cloud`` over (a float64 array it will not touch again), so it
             is kept without a copy; by default it is copied.
-        held_fallback : numpy.ndarray, optional
+        held_fallback : numpy.ndarray or SparseMask, optional
             The fallback mask a reader still uses (never written).
 
         Returns
@@ -1139,7 +1140,7 @@ class LiveMapBuilder:
 
     def _write_fallback(self, obstacles: LiveObstacles, layers: Sequence[PointCells],
                         moved_shapes: List[Obstacle], moved_cells: List[np.ndarray],
-                        moved: bool, held: Optional[np.ndarray]) -> Mask:
+                        moved: bool, held: Optional[Mask]) -> Mask:
         """The mask for the planner's fallback margin, kept up to date like the other."""
         buffers = self._fallback_buffers
         if buffers is None:

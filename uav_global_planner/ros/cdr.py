@@ -15,7 +15,7 @@ deserialisation, and the node checks once at start-up that rclpy reads these byt
 same messages (:mod:`~uav_global_planner.ros.plan_writer`). No ``rclpy`` here.
 """
 
-from typing import List, Optional, Sequence, Tuple
+from typing import List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
@@ -34,7 +34,7 @@ _KINDS = {'u4': ('<u4', 4), 'i4': ('<i4', 4), 'f8': ('<f8', 8)}
 
 #: A record field: (name, kind), kind one of 'u4', 'i4', 'f8', or (name, bytes) for raw bytes
 #: without alignment (the characters of a string after its length).
-Field = Tuple[str, object]
+Field = Tuple[str, Union[str, bytes]]
 
 
 class _Writer:

@@ -614,7 +614,7 @@ class PlannerInterfaces:
         self._host.publish_diagnostics(self._node.get_clock().now().nanoseconds,
                                        DiagnosticStatus.OK, text, values)
 
-    def _report(self, request: _Request, result: PlanResult, source: str, stamp_ns: int,
+    def _report(self, request: _Request, result: PlanResult, source: StartSource, stamp_ns: int,
                 elapsed_s: float, note: str, message: str,
                 extra: Optional[Mapping[str, object]] = None) -> None:
         reason = f'{request.kind} request'

@@ -24,6 +24,7 @@ from uav_global_planner.core.live_map import LiveMap
 from uav_global_planner.core.planner import certify_plan, ClearanceVerdict
 from uav_global_planner.core.result import PlanResult
 from uav_global_planner.ros import conversions as conv
+from uav_global_planner.ros.node_attributes import NodeAttributes
 from uav_global_planner.ros.node_state import InForce
 from uav_global_planner.ros.start_source import StartSource
 
@@ -77,7 +78,7 @@ class ExportablePlan:
     live: LiveMap
 
 
-class PlanInForce:
+class PlanInForce(NodeAttributes):
     """Publishing, checking and withdrawing the latched plan.
 
     Owns ``_in_force`` and ``_latched`` (guarded by ``_publish_lock``).

@@ -17,6 +17,7 @@ import numpy as np
 from uav_global_planner.core.errors import InvalidInputError
 from uav_global_planner.core.status import NAV2_GOAL_OUTSIDE_MAP, NAV2_UNKNOWN
 from uav_global_planner.ros import conversions as conv
+from uav_global_planner.ros.node_attributes import NodeAttributes
 from uav_global_planner.ros.node_state import Goal
 from uav_global_planner.ros.parameters import MAP_SOURCES, NodeSettings
 from uav_global_planner.ros.start_source import StartSource
@@ -26,7 +27,7 @@ from uav_global_planner.ros.takeover import odometry_velocity
 NO_MAP_STATUS = 'no_map'
 
 
-class CommandInputs:
+class CommandInputs(NodeAttributes):
     """Goal and start callbacks; write ``_goal`` and ``_start`` (under ``_wake``)."""
 
     def _map_missing(self, settings: NodeSettings) -> Optional[str]:

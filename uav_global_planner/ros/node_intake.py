@@ -22,11 +22,12 @@ from uav_global_planner.core.live_map import UNCHANGED
 from uav_global_planner.ros import conversions as conv
 from uav_global_planner.ros.geofence_source import geofence_shapes
 from uav_global_planner.ros.ground_source import ground_key, ground_shapes
+from uav_global_planner.ros.node_attributes import NodeAttributes
 from uav_global_planner.ros.node_state import InForce
 from uav_global_planner.ros.parameters import NodeSettings
 
 
-class MapIntake:
+class MapIntake(NodeAttributes):
     """Map topics and the intake thread; own ``_inbox`` and ``_intake_*``, write ``_map``."""
 
     def _on_obstacles_raw(self, data: bytes) -> None:

@@ -20,6 +20,7 @@ from uav_global_planner.ros.geofence_source import (airspace_from_values, descri
                                                     geofence_key, GEOFENCE_PARAMETERS)
 from uav_global_planner.ros.ground_source import ground_key
 from uav_global_planner.ros.mission_service import ORIGIN_PARAMETER
+from uav_global_planner.ros.node_attributes import NodeAttributes
 from uav_global_planner.ros.node_state import SourceState
 from uav_global_planner.ros.parameters import (NodeSettings, plain as _plain,
                                                settings_from_parameters, SPECS_BY_NAME)
@@ -27,7 +28,7 @@ from uav_global_planner.ros.start_source import StartSource
 from uav_global_planner.ros.terrain_source import read_terrain, terrain_key
 
 
-class ParameterHandling:
+class ParameterHandling(NodeAttributes):
     """Parameter callbacks; own ``_param_values``, write ``_settings`` (under ``_wake``)."""
 
     def _validate_parameters(self, parameters: List[Parameter]) -> SetParametersResult:

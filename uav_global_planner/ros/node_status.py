@@ -15,11 +15,12 @@ import numpy as np
 from uav_global_planner.core.live_map import LiveMap
 from uav_global_planner.ros import conversions as conv
 from uav_global_planner.ros.geofence_source import describe
+from uav_global_planner.ros.node_attributes import NodeAttributes
 from uav_global_planner.ros.parameters import NodeSettings
 from uav_global_planner.ros.terrain_source import terrain_values
 
 
-class StatusPublishing:
+class StatusPublishing(NodeAttributes):
     """Diagnostics, markers and map status; own ``_markers_published_key``."""
 
     def _settings_values(self, settings: NodeSettings) -> Dict[str, object]:

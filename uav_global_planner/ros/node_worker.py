@@ -24,6 +24,7 @@ from uav_global_planner.core.start_admission import Admission, admit, explain, G
 from uav_global_planner.core.status import NAV2_CODE_BY_STATUS, NAV2_UNKNOWN, PlanStatus
 from uav_global_planner.ros import conversions as conv
 from uav_global_planner.ros.geofence_source import describe
+from uav_global_planner.ros.node_attributes import NodeAttributes
 from uav_global_planner.ros.node_state import Goal, Snapshot
 from uav_global_planner.ros.parameters import NodeSettings
 from uav_global_planner.ros.start_source import StartSource
@@ -44,7 +45,7 @@ _RETRY_ON_OBSTACLES = (PlanStatus.NO_VALID_PATH, PlanStatus.TIMEOUT, PlanStatus.
                        PlanStatus.GOAL_OCCUPIED)
 
 
-class PlanningWorker:
+class PlanningWorker(NodeAttributes):
     """The worker thread and its plans; own ``_planner``, ``_last_result`` and the replan state."""
 
     def _take_snapshot(self) -> Optional[Snapshot]:
@@ -127,6 +128,7 @@ class PlanningWorker:
         if goal is None:
             return
         # A goal not attempted yet (normally goal_changed; also after a failed step).
+        reason: Optional[str]
         if goal.serial != self._last_goal_serial:
             reason = 'new goal'
         elif self._replan_reason is not None:
@@ -204,8 +206,9 @@ class PlanningWorker:
         limit = f' of {budget_s:g} s' if budget_s > 0 else ''
         text = f'planning: {stage.value} after {elapsed_s:.1f} s{limit}'
         self._log.info(text)
-        values = {'event': 'progress', 'status': 'planning', 'stage': stage.value,
-                  'elapsed_s': elapsed_s, 'budget_s': budget_s, 'goal': goal.position}
+        values: Dict[str, object] = {
+            'event': 'progress', 'status': 'planning', 'stage': stage.value,
+            'elapsed_s': elapsed_s, 'budget_s': budget_s, 'goal': goal.position}
         values.update(self._settings_values(settings))
         self._publish_diagnostics(self.node.get_clock().now().nanoseconds,
                                   DiagnosticStatus.OK, text, values)
@@ -423,8 +426,8 @@ class PlanningWorker:
             # Same goal, new settings: plan it again with them.
             self._replan_reason = 'parameters changed while planning'
         self._log.info(f'plan cancelled: {result.message}')
-        values = {'event': 'plan_cancelled', 'status': result.status.value,
-                  'reason': result.message, 'goal': goal.position}
+        values: Dict[str, object] = {'event': 'plan_cancelled', 'status': result.status.value,
+                                     'reason': result.message, 'goal': goal.position}
         values.update(self._settings_values(snap.settings))
         self._publish_diagnostics(self.node.get_clock().now().nanoseconds,
                                   DiagnosticStatus.OK, f'plan cancelled: {result.message}',

@@ -50,7 +50,9 @@ every map source (``map_sources``, ``map_refused``: a plan made while a source's
 was refused says so, at WARN).
 
 The node's jobs live in modules of their own, joined here as mixins of :class:`PlannerNode`
-(one object, so the threads share its locks and state): shared records in
+(one object, so the threads share its locks and state): the attributes they share, the lock
+that guards each and the methods one calls on another are declared in their base
+:class:`~uav_global_planner.ros.node_attributes.NodeAttributes`, shared records in
 :mod:`~uav_global_planner.ros.node_state`, parameter changes in
 :mod:`~uav_global_planner.ros.node_reconfigure`, goal and start inputs in
 :mod:`~uav_global_planner.ros.node_inputs`, the map intake in
@@ -64,7 +66,7 @@ subscriptions, timers, threads) and runs it (:func:`main`).
 import signal
 import sys
 import threading
-from typing import Any, Callable, Dict, List, Optional, Tuple
+from typing import Any, List, Optional
 
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped
@@ -79,11 +81,11 @@ from trajectory_msgs.msg import MultiDOFJointTrajectory
 from visualization_msgs.msg import MarkerArray
 
 from uav_global_planner.core.airspace import Airspace
+from uav_global_planner.core.config import PlannerConfig
 from uav_global_planner.core.errors import InvalidInputError
-from uav_global_planner.core.live_map import LiveMap, LiveMapBuilder
-from uav_global_planner.core.mapfiles import load_prior_map, MapPoints
+from uav_global_planner.core.live_map import LiveMapBuilder
+from uav_global_planner.core.mapfiles import load_prior_map
 from uav_global_planner.core.planner import Planner
-from uav_global_planner.core.result import PlanResult
 from uav_global_planner.core.unknown_space import unknown_from_map_files, UnknownSpace
 from uav_global_planner.ros import conversions as conv
 from uav_global_planner.ros.geofence_source import (airspace_from_values, geofence_key,
@@ -96,7 +98,7 @@ from uav_global_planner.ros.node_in_force import PlanInForce
 from uav_global_planner.ros.node_inputs import CommandInputs
 from uav_global_planner.ros.node_intake import MapIntake
 from uav_global_planner.ros.node_reconfigure import ParameterHandling
-from uav_global_planner.ros.node_state import Goal, Inbox, InForce, Snapshot, SourceState
+from uav_global_planner.ros.node_state import Inbox, SourceState
 from uav_global_planner.ros.node_status import StatusPublishing
 from uav_global_planner.ros.node_worker import PlanningWorker
 from uav_global_planner.ros.parameters import (  # noqa: F401 - importable from the node
@@ -156,7 +158,7 @@ class PlannerNode(ParameterHandling, CommandInputs, MapIntake, PlanInForce, Plan
         self._param_values = declare_parameters(self.node)
         # Validated before the map file is read: a typo elsewhere is reported first.
         first = settings_from_parameters(self._param_values)
-        self._prior: Optional[MapPoints] = None
+        self._prior = None
         # Why map_file was refused ('': it was not); map_file is read once, at start-up.
         self._prior_refusal = ''
         # Space an OctoMap map_file never observed, within the bounds (see _follow_bounds).
@@ -196,65 +198,65 @@ class PlannerNode(ParameterHandling, CommandInputs, MapIntake, PlanInForce, Plan
         # State below is guarded by self._wake.
         self._settings = settings
         self._settings_changed = False
-        self._map: LiveMap = self._builder.update()
+        self._map = self._builder.update()
         self._map_changed = False
         # Header stamp of the map message that last changed the obstacles (0: none yet), and
         # of the newest map message taken in; reported with every plan.
         self._obstacles_stamp_ns = 0
         self._map_stamp_ns = 0
-        self._sources: Dict[str, SourceState] = {name: SourceState() for name in MAP_SOURCES}
+        self._sources = {name: SourceState() for name in MAP_SOURCES}
         if self._prior is not None:
             self._sources['map_file'] = SourceState(received=1, accepted=1)
         elif self._prior_refusal:
             self._sources['map_file'] = SourceState(received=1, refused=1, refused_last=True,
                                                     last_refusal=self._prior_refusal)
-        self._goal: Optional[Goal] = None
+        self._goal = None
         self._goal_serial = 0
         self._goal_changed = False
-        self._start: Optional[np.ndarray] = None
+        self._start = None
         self._start_source = StartSource.PARAMETER
         self._stopping = False
         # A replan the worker owes the active goal (the plan in force was withdrawn, or it
         # started at the start parameter and the vehicle's position arrived): the reason.
-        self._replan_request: Optional[str] = None
+        self._replan_request = None
         # The map the worker plans on (its mask is never rewritten while held).
-        self._worker_map: Optional[LiveMap] = None
+        self._worker_map = None
         # Start source of the plan in force; None: none in force.
-        self._in_force_source: Optional[StartSource] = None
-        self._intake_times: Tuple[float, float, float] = (0.0, 0.0, 0.0)
+        self._in_force_source = None
+        self._intake_times = (0.0, 0.0, 0.0)
         # Seconds from a cloud's header stamp to its map being handed to the worker, since the
         # last map_status (the stamp is the publisher's clock: meaningful on one machine).
-        self._cloud_latencies: List[float] = []
+        self._cloud_latencies = []
         # Worker-only state: outcome of the last plan attempt.
-        self._last_result: Optional[PlanResult] = None
+        self._last_result = None
         self._last_goal_serial = -1
         # Worker-only: why the active goal must be planned again although nothing flagged it.
-        self._replan_reason: Optional[str] = None
+        self._replan_reason = None
         # Worker-only: the map applied to the planner, and plans dropped in a row because the
         # vehicle moved away from their start while they were computed.
-        self._applied_map: Optional[LiveMap] = None
+        self._applied_map = None
         self._grid_from_map = False
         self._drift_replans = 0
         # Guarded by _publish_lock: the plan latched on ``plan`` (None: none, or withdrawn).
-        self._latched: Optional[PlanResult] = None
-        self._in_force: Optional[InForce] = None
-        self._markers_published_key: Optional[tuple] = None
+        self._latched = None
+        self._in_force = None
+        self._markers_published_key = None
         # Intake: its inbox (guarded by _intake_cv) and its own state.
         self._intake_cv = threading.Condition()
         self._inbox = Inbox()
-        self._intake_markers: Dict[conv.MarkerKey, Any] = {}
+        self._intake_markers = {}
         # The geofence in force and its shapes in the intake's map (read below).
         self._airspace = Airspace()
-        self._intake_geofence: Dict[Tuple[str, int], Any] = {}
+        self._intake_geofence = {}
         # Serial numbers of the geofence asked for and of the one the map holds (_wake).
         self._geofence_requested = 0
         self._geofence_applied = 0
         # The geofence parameters the geofence in force was read from (None: not read yet).
-        self._geofence_key: Optional[tuple] = None
+        self._geofence_key = None
         # The terrain_file in force (None: not read yet; written under _wake).
-        self._terrain_state: Optional[TerrainState] = None
+        self._terrain_state = None
         # A terrain read by the on-set callback for values about to be set (see node_reconfigure).
-        self._terrain_candidate: Optional[TerrainState] = None
+        self._terrain_candidate = None
         self._intake_frame = conv.normalize_frame(settings.frame_id)
         self._duplicates_reported = 0
 
@@ -288,7 +290,7 @@ class PlannerNode(ParameterHandling, CommandInputs, MapIntake, PlanInForce, Plan
                                         daemon=True)
         self._diag_name = f'{node.get_fully_qualified_name()}: global planner'
         # Requests of the Nav2 interfaces, run by the worker after _step (guarded by _wake).
-        self._jobs: List[Callable[[Planner, Snapshot], None]] = []
+        self._jobs = []
         self._nav2 = PlannerInterfaces(self)
         self._mission_export = MissionExportService(self)
         # The geofence is read once geodetic_origin (declared by the mission export) exists;
@@ -309,7 +311,7 @@ class PlannerNode(ParameterHandling, CommandInputs, MapIntake, PlanInForce, Plan
             self._map = self._builder.update(shapes={**self._intake_geofence,
                                                      **self._intake_ground})
 
-    def _follow_bounds(self, config) -> None:
+    def _follow_bounds(self, config: PlannerConfig) -> None:
         """The unknown space of an OctoMap ``map_file`` within new bounds (read again from the
         file; all of the bounds when it can no longer be read)."""
         bounds = (tuple(config.bounds_min), tuple(config.bounds_max))

@@ -103,13 +103,15 @@ def same_obstacle(first: Obstacle, second: Obstacle) -> bool:
         return True
     if type(first) is not type(second):
         return False
-    if isinstance(first, Sphere):
+    if isinstance(first, Sphere) and isinstance(second, Sphere):
         return (first.radius == second.radius
                 and bool(np.array_equal(first.center, second.center)))
-    if isinstance(first, Box):
+    if isinstance(first, Box) and isinstance(second, Box):
         return (bool(np.array_equal(first.min, second.min))
                 and bool(np.array_equal(first.max, second.max)))
-    return bool(np.array_equal(first.points, second.points))
+    if isinstance(first, PointSet) and isinstance(second, PointSet):
+        return bool(np.array_equal(first.points, second.points))
+    return False  # shapes no marker makes (geofence, terrain): equal only when the same object
 
 
 def same_marker_obstacles(first: Mapping[MarkerKey, Obstacle],

@@ -6,7 +6,7 @@ by :mod:`~uav_global_planner.ros.cdr` alike. Rotations are scipy's
 :class:`~scipy.spatial.transform.Rotation`; quaternions are (x, y, z, w), as in ROS messages.
 """
 
-from typing import Optional, Sequence, Tuple
+from typing import Optional, Sequence, Tuple, Union
 
 from geometry_msgs.msg import Point, Pose, PoseStamped, Quaternion, Vector3
 from nav_msgs.msg import Odometry
@@ -27,6 +27,9 @@ _HEADING_EPS = 1e-6
 
 # Quaternions shorter than this are treated as "unset" (all zeros), which RViz shows unrotated.
 _QUATERNION_EPS = 1e-9
+
+#: A few numbers: a point [m], a vector or a quaternion, as a sequence or a numpy array.
+Numbers = Union[Sequence[float], np.ndarray]
 
 
 def normalize_frame(frame_id: str) -> str:
@@ -113,8 +116,8 @@ def odometry_to_point(msg: Odometry, expected_frame: str, what: str = 'odom') ->
     return point_to_array(msg.pose.pose.position, f'{what} position')
 
 
-def pose_stamped(position: Sequence[float], frame_id: str, stamp_ns: int,
-                 orientation: Sequence[float] = IDENTITY_QUATERNION) -> PoseStamped:
+def pose_stamped(position: Numbers, frame_id: str, stamp_ns: int,
+                 orientation: Numbers = IDENTITY_QUATERNION) -> PoseStamped:
     """``PoseStamped`` of a position [m] and a quaternion (x, y, z, w)."""
     msg = PoseStamped()
     msg.header = Header(frame_id=frame_id, stamp=time_from_ns(stamp_ns))
@@ -122,20 +125,20 @@ def pose_stamped(position: Sequence[float], frame_id: str, stamp_ns: int,
     return msg
 
 
-def pose(position: Sequence[float], orientation: Sequence[float]) -> Pose:
+def pose(position: Numbers, orientation: Numbers) -> Pose:
     """``Pose`` of a position [m] and a quaternion (x, y, z, w)."""
     x, y, z = (float(v) for v in position)
     qx, qy, qz, qw = (float(v) for v in orientation)
     return Pose(position=Point(x=x, y=y, z=z), orientation=Quaternion(x=qx, y=qy, z=qz, w=qw))
 
 
-def vector3(values: Sequence[float]) -> Vector3:
+def vector3(values: Numbers) -> Vector3:
     """``Vector3`` of three numbers."""
     x, y, z = (float(v) for v in values)
     return Vector3(x=x, y=y, z=z)
 
 
-def rotation_matrix(quaternion: Sequence[float]) -> np.ndarray:
+def rotation_matrix(quaternion: Numbers) -> np.ndarray:
     """Rotation matrix (3, 3) of a unit quaternion (x, y, z, w)."""
     return Rotation.from_quat(np.asarray(quaternion, dtype=np.float64)).as_matrix()
 
@@ -152,7 +155,7 @@ def yaw_quaternion(yaw: float) -> Tuple[float, float, float, float]:
     return (x, y, z, w)
 
 
-def quaternion_yaw(quaternion: Sequence[float]) -> float:
+def quaternion_yaw(quaternion: Numbers) -> float:
     """Yaw [rad] of a quaternion (x, y, z, w): the heading of the rotated +x axis.
 
     That is the first angle of the z-y'-x'' (yaw, pitch, roll) decomposition; a zero quaternion
