@@ -32,11 +32,13 @@ _uav_planner_setup() {
     rm -f "$log"
     echo "$wanted" > "$stamp"
   fi
-  # Nav2's planner actions (nav2_msgs is not on PyPI), built from interfaces/ into the venv
-  # once: the script keeps its own stamp and returns at once when nothing changed. Without them
-  # the planner node still runs, with its topics and GetPlan.
+  # Nav2's planner actions and PX4's messages (nav2_msgs and px4_msgs are not on PyPI), built
+  # from interfaces/ into the venv once: the script keeps a stamp per package and returns at
+  # once when nothing changed. Without nav2_msgs the planner node still runs, with its topics
+  # and GetPlan; without px4_msgs the setpoint follower has only its MAVLink transport.
   if ! bash "$repo_root/scripts/build_interfaces.sh" "$venv"; then
-    echo "warning: nav2_msgs not built; planner_node starts without its Nav2 action servers" >&2
+    echo "warning: interface packages not built (named above); without nav2_msgs planner_node" \
+      "starts without its Nav2 action servers, without px4_msgs the follower has no PX4 link" >&2
   fi
 }
 # One install at a time: shells that source this at once (parallel test runs) wait for the
