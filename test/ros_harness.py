@@ -12,15 +12,16 @@ from the process id. Ids that another process on this machine is using are skipp
 checkouts tested side by side (best given bases far apart, e.g. 10 and 60) never share one.
 """
 
+from contextlib import contextmanager
 import itertools
 import os
 from pathlib import Path
 import threading
 import time
-from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence
+from typing import Any, Callable, Dict, Iterator, List, Mapping, Optional, Sequence
 
 from builtin_interfaces.msg import Time
-from diagnostic_msgs.msg import DiagnosticArray
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import Point, PoseStamped, Quaternion, Vector3
 from nav_msgs.msg import Odometry, Path as PathMsg
 import numpy as np
@@ -481,3 +482,49 @@ class PlannerClient:
         mark = self.markers.mark()
         self.publish('obstacles', msg)
         self.wait_obstacle_count(expected_obstacles, mark)
+
+
+@contextmanager
+def planner_session(namespace: str, parameters: Optional[Mapping[str, Any]] = None,
+                    domain_id: Optional[int] = None) -> Iterator[PlannerClient]:
+    """One planner node (waited for) and a client of it recording ``/diagnostics``.
+
+    The client is closed and the node killed on leaving.
+
+    Parameters
+    ----------
+    namespace : str
+    parameters : mapping, optional
+        The node's ``-p`` values.
+    domain_id : int, optional
+        Its ROS domain; a free one by default.
+    """
+    domain_id = unique_domain_id() if domain_id is None else domain_id
+    process = start_planner(domain_id, namespace=namespace, parameters=parameters)
+    client = RosClient(domain_id)
+    try:
+        yield PlannerClient(client, namespace, client.record(DiagnosticArray, '/diagnostics'),
+                            process)
+    finally:
+        client.close()
+        process.kill()
+
+
+def assert_start_file_refused(planner: PlannerClient, setting: str, file: Path,
+                              reason: str) -> None:
+    """A node started with an unusable file in ``setting`` (``map_file``, ``terrain_file``)
+    runs on without it: its log and map status name the file and the reason, it has no map,
+    and a goal is refused with the same words."""
+    line = planner.process.wait_for_output(f'refused {setting}: ', 1.0)
+    assert f'{file}: {reason}' in line, line
+    status = planner.wait_diag(0, 'map_status')
+    error = int.from_bytes(DiagnosticStatus.ERROR, 'little')
+    assert status['_level'] == error and status['status'] == 'no_map', status
+    assert status[f'{setting}_status'] == 'refused', status
+    assert f'{file}: {reason}' in status[f'{setting}_refused'], status
+    mark = planner.diagnostics.mark()
+    planner.publish('goal_pose', conv.pose_stamped([0.0, 5.0, 2.0], 'map', 0))
+    refused = planner.wait_diag(mark, 'plan')
+    assert refused['status'] == 'no_map' and refused['_level'] == error, refused
+    assert f'{setting} refused: ' in refused['message'], refused
+    assert reason in refused['message'], refused

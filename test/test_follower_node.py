@@ -6,10 +6,12 @@ planner by publishing ``plan`` and ``trajectory`` messages as the planner node w
 (:func:`uav_global_planner.ros.conversions.plan_to_trajectory` of a plan).
 """
 
+from contextlib import contextmanager
 import math
 import socket
 import threading
 import time
+from typing import Iterator, Optional, Tuple
 
 from diagnostic_msgs.msg import DiagnosticArray
 from nav_msgs.msg import Odometry, Path
@@ -60,6 +62,28 @@ def follower_command(parameters, mavlink=None):
                 else repr(value) if isinstance(value, float) else str(value))
         command += ['-p', f'{name}:={text}']
     return command
+
+
+@contextmanager
+def running_follower(parameters, client_name: str, domain: Optional[int] = None
+                     ) -> Iterator[Tuple[NodeProcess, RosClient]]:
+    """A follower node (PX4 topics), ready, and a client in its domain; both are ended on
+    leaving."""
+    domain = unique_domain_id() if domain is None else domain
+    node = NodeProcess(follower_command(parameters), ros_environment(domain))
+    client = RosClient(domain, client_name)
+    try:
+        node.wait_for_output(READY_TEXT, STARTUP_TIMEOUT_S)
+        yield node, client
+    finally:
+        client.close()
+        node.kill()
+
+
+def record_setpoints(client: RosClient):
+    """A recording of the PX4 setpoints the follower sends."""
+    return client.record(TrajectorySetpoint, px4_names.TRAJECTORY_SETPOINT,
+                         px4_names.PX4_BRIDGE_READER_QOS)
 
 
 class Planner:
@@ -147,18 +171,12 @@ def diag_of(msg: DiagnosticArray):
 @pytest.fixture
 def px4_follower(tmp_path):
     """A follower process (PX4 transport), the test client, a vehicle and a planner stand-in."""
-    domain = unique_domain_id()
     fence = tmp_path / 'fence.yaml'
     fence.write_text('geofence:\n  exclusion:\n'
                      '  - {type: box, min: [3.0, -10.0, 0.0], max: [10.0, 10.0, 15.0]}\n')
-    node = NodeProcess(follower_command({**BOUNDS, 'odometry_timeout': 0.5,
-                                         'geofence_file': str(fence)}),
-                       ros_environment(domain))
-    client = RosClient(domain, 'follower_test')
-    try:
-        node.wait_for_output(READY_TEXT, STARTUP_TIMEOUT_S)
-        setpoints = client.record(TrajectorySetpoint, px4_names.TRAJECTORY_SETPOINT,
-                                  px4_names.PX4_BRIDGE_READER_QOS)
+    with running_follower({**BOUNDS, 'odometry_timeout': 0.5, 'geofence_file': str(fence)},
+                          'follower_test') as (node, client):
+        setpoints = record_setpoints(client)
         commands = client.record(VehicleCommand, px4_names.VEHICLE_COMMAND,
                                  px4_names.PX4_BRIDGE_READER_QOS)
         odom = client.record(Odometry, 'odom', MONITOR_QOS)
@@ -170,9 +188,6 @@ def px4_follower(tmp_path):
                'planner': Planner(client)}
         vehicle.close()
         assert_clean_exit(node, node.stop())
-    finally:
-        client.close()
-        node.kill()
 
 
 def wait_diag(diagnostics, check, after=0, timeout_s=10.0, what='diagnostics'):
@@ -256,15 +271,9 @@ def test_px4_stale_nan_and_out_of_frame_odometry_hold(px4_follower):
 
 
 def test_bounds_hold_the_setpoints_and_bad_parameters_exit_with_a_reason():
-    domain = unique_domain_id()
-    node = NodeProcess(follower_command({'bounds.min': [-1.0, -1.0, 0.0],
-                                         'bounds.max': [1.0, 1.0, 2.0]}),
-                       ros_environment(domain))
-    client = RosClient(domain, 'follower_bounds')
-    try:
-        node.wait_for_output(READY_TEXT, STARTUP_TIMEOUT_S)
-        setpoints = client.record(TrajectorySetpoint, px4_names.TRAJECTORY_SETPOINT,
-                                  px4_names.PX4_BRIDGE_READER_QOS)
+    with running_follower({'bounds.min': [-1.0, -1.0, 0.0], 'bounds.max': [1.0, 1.0, 2.0]},
+                          'follower_bounds') as (node, client):
+        setpoints = record_setpoints(client)
         vehicle = Px4Vehicle(client, [0.0, 0.0, 1.0])
         setpoints.wait_for(timeout_s=20.0, what='a hold where the vehicle is')
         Planner(client).publish(line_plan([0.0, 0.0, 1.0], [2.0, -2.0, 2.0], duration=3.0),
@@ -277,9 +286,6 @@ def test_bounds_hold_the_setpoints_and_bad_parameters_exit_with_a_reason():
         assert np.allclose(enu[-1], [1.0, -1.0, 2.0])       # clamped into the corner
         vehicle.close()
         assert_clean_exit(node, node.stop())
-    finally:
-        client.close()
-        node.kill()
     bad = NodeProcess(follower_command({'bounds.min': [0.0, 0.0, 5.0],
                                         'bounds.max': [1.0, 1.0, 2.0]}),
                       ros_environment(unique_domain_id()))
@@ -387,8 +393,7 @@ def test_real_planner_replan_in_flight_is_flown_without_a_jump():
     vehicle = None
     try:
         node.wait_for_output(READY_TEXT, STARTUP_TIMEOUT_S)
-        setpoints = client.record(TrajectorySetpoint, px4_names.TRAJECTORY_SETPOINT,
-                                  px4_names.PX4_BRIDGE_READER_QOS)
+        setpoints = record_setpoints(client)
         trajectories = client.record(MultiDOFJointTrajectory, 'trajectory', LATCHED_QOS)
         vehicle = Px4Vehicle(client, [0.0, -8.0, 2.0])
 

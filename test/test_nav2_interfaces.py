@@ -23,7 +23,6 @@ A Kilted/Rolling build (where ComputePathThroughPoses takes ``nav_msgs/Goals``) 
 ComputePathToPose hashes and different ComputePathThroughPoses ones, as expected.
 """
 
-import ctypes
 from pathlib import Path
 import shutil
 import subprocess
@@ -31,6 +30,8 @@ import sys
 from typing import Dict
 
 from catkin_pkg.packages import find_packages
+from helpers.interface_packages import (assert_build_is_current, compiled_type_hash,
+                                        prefix_of)
 import pytest
 
 from uav_global_planner.core import status
@@ -120,45 +121,15 @@ REPO_ROOT = Path(__file__).resolve().parents[1]
 INTERFACE_PACKAGE = REPO_ROOT / 'interfaces' / 'nav2_msgs'
 
 
-class _TypeHash(ctypes.Structure):
-    """``rosidl_type_hash_t``: a version byte and 32 bytes of SHA-256."""
-
-    _fields_ = [('version', ctypes.c_uint8), ('value', ctypes.c_uint8 * 32)]
-
-
-def _prefix_of(module) -> Path:
-    """Install prefix of a ROS Python package (``<prefix>/lib/pythonX.Y/site-packages/<pkg>``)."""
-    return Path(module.__file__).resolve().parents[4]
-
-
-def compiled_type_hash(type_name: str, prefix: Path) -> str:
-    """The RIHS01 hash the compiled C type support of ``type_name`` reports.
-
-    Parameters
-    ----------
-    type_name : str
-        For example ``'nav2_msgs/action/ComputePathToPose_Goal'``.
-    prefix : Path
-        Install prefix holding ``lib/lib<package>__rosidl_generator_c.so``.
-    """
-    package, kind, name = type_name.split('/')
-    library = ctypes.CDLL(str(prefix / 'lib' / f'lib{package}__rosidl_generator_c.so'))
-    function = getattr(library, f'{package}__{kind}__{name}__get_type_hash')
-    function.restype = ctypes.POINTER(_TypeHash)
-    function.argtypes = [ctypes.c_void_p]
-    found = function(None).contents
-    return f'RIHS{found.version:02d}_' + bytes(found.value).hex()
-
-
 def test_dependency_hashes_equal_those_of_the_jazzy_build():
     import builtin_interfaces
-    prefix = _prefix_of(builtin_interfaces)
+    prefix = prefix_of(builtin_interfaces)
     found = {name: compiled_type_hash(name, prefix) for name in JAZZY_DEPENDENCY_HASHES}
     assert found == JAZZY_DEPENDENCY_HASHES
 
 
 def test_built_action_hashes_equal_nav2_jazzy():
-    prefix = _prefix_of(nav2_msgs)
+    prefix = prefix_of(nav2_msgs)
     found = {name: compiled_type_hash(name, prefix) for name in JAZZY_TYPE_HASHES}
     wrong = {name: (found[name], JAZZY_TYPE_HASHES[name]) for name in found
              if found[name] != JAZZY_TYPE_HASHES[name]}
@@ -218,9 +189,4 @@ def test_interface_package_is_invisible_to_workspace_tools(tmp_path):
 
 
 def test_build_script_returns_at_once_when_nothing_changed():
-    if not (Path(sys.prefix) / '.nav2_msgs.sha256').is_file():
-        pytest.skip('nav2_msgs does not come from scripts/build_interfaces.sh here')
-    run = subprocess.run(['bash', str(REPO_ROOT / 'scripts' / 'build_interfaces.sh'),
-                          sys.prefix], capture_output=True, text=True, timeout=600)
-    assert run.returncode == 0, run.stderr
-    assert run.stdout == '' and run.stderr == '', (run.stdout, run.stderr)
+    assert_build_is_current('nav2_msgs')

@@ -10,14 +10,12 @@ import json
 from pathlib import Path
 from typing import Iterator
 
-from diagnostic_msgs.msg import DiagnosticArray
 import numpy as np
 import pymap3d
 import pytest
 import yaml
 
-from ros_harness import (PlannerClient, RosClient, RUN_NAMESPACE, start_planner,
-                         unique_domain_id)
+from ros_harness import planner_session, PlannerClient, RUN_NAMESPACE
 from uav_global_planner.core.airspace import Cylinder, InclusionFence, load_geofence
 from uav_global_planner.core.geodesy import GeodeticOrigin
 from uav_global_planner.core.obstacles import ObstacleSet
@@ -41,15 +39,8 @@ DENSE_SAMPLES = 10_000
 @pytest.fixture(scope='module')
 def planner() -> Iterator[PlannerClient]:
     """One planner in open air (the paper's box), so only the geofence shapes the paths."""
-    domain_id = unique_domain_id()
-    process = start_planner(domain_id, namespace=NS, parameters={'plan_without_map': True})
-    client = RosClient(domain_id)
-    try:
-        yield PlannerClient(client, NS, client.record(DiagnosticArray, '/diagnostics'),
-                            process)
-    finally:
-        client.close()
-        process.kill()
+    with planner_session(NS, {'plan_without_map': True}) as planner:
+        yield planner
 
 
 def write_yaml_fence(path: Path, exclusion: list, inclusion: dict = None) -> Path:

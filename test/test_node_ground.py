@@ -14,12 +14,11 @@ status, and refuses goals with the reason.
 from pathlib import Path
 from typing import Iterator
 
-from diagnostic_msgs.msg import DiagnosticArray
 import numpy as np
 import pytest
 
-from ros_harness import (PlannerClient, READY_TEXT, RosClient, RUN_NAMESPACE, start_planner,
-                         unique_domain_id)
+from ros_harness import (assert_start_file_refused, planner_session, PlannerClient, READY_TEXT,
+                         RUN_NAMESPACE)
 from uav_global_planner.core.dem import load_dem
 from uav_global_planner.ros import conversions as conv
 
@@ -34,17 +33,9 @@ TOL = 1e-6
 
 @pytest.fixture(scope='module')
 def planner() -> Iterator[PlannerClient]:
-    domain_id = unique_domain_id()
-    process = start_planner(domain_id, namespace=NS, parameters={
-        'plan_without_map': True, 'ground': 'floor', 'max_agl': 5.0,
-        'start': [0.0, -5.0, 1.0]})
-    client = RosClient(domain_id)
-    try:
-        yield PlannerClient(client, NS, client.record(DiagnosticArray, '/diagnostics'),
-                            process)
-    finally:
-        client.close()
-        process.kill()
+    with planner_session(NS, {'plan_without_map': True, 'ground': 'floor', 'max_agl': 5.0,
+                              'start': [0.0, -5.0, 1.0]}) as planner:
+        yield planner
 
 
 def dense_points(path_msg) -> np.ndarray:
@@ -77,7 +68,6 @@ def test_the_band_holds_and_follows_its_parameters(planner) -> None:
 
 # ------------------------------------------------------------------------------ terrain_file
 
-ERROR = 2  # diagnostic_msgs/DiagnosticStatus.ERROR
 MIN_AGL, MAX_AGL = 1.0, 5.0
 BOUNDS_XY = ((-10.0, -10.0), (10.0, 10.0))  # config/planner.yaml [m]
 # Linear interpolation between the path's points (0.1 m apart) against the curve [m].
@@ -112,16 +102,10 @@ def test_a_terrain_file_is_the_ground_and_the_band_follows_it(tmp_path) -> None:
     start[2] = terrain.height_at(start[None, :2])[0] + 2.0
     goal = np.array([0.0, 8.0, 0.0])
     goal[2] = terrain.height_at(goal[None, :2])[0] + 2.0
-    domain_id = unique_domain_id()
-    namespace = f'{RUN_NAMESPACE}/terrain'
-    process = start_planner(domain_id, namespace=namespace, parameters={
-        'plan_without_map': True, 'terrain_file': str(dem), 'min_agl': MIN_AGL,
-        'max_agl': MAX_AGL, 'start': start.tolist()})
-    client = RosClient(domain_id)
-    try:
-        assert f'terrain {dem}: ' in process.wait_for_output(READY_TEXT, 1.0)
-        planner = PlannerClient(client, namespace, client.record(DiagnosticArray,
-                                                                 '/diagnostics'), process)
+    with planner_session(f'{RUN_NAMESPACE}/terrain', {
+            'plan_without_map': True, 'terrain_file': str(dem), 'min_agl': MIN_AGL,
+            'max_agl': MAX_AGL, 'start': start.tolist()}) as planner:
+        assert f'terrain {dem}: ' in planner.process.wait_for_output(READY_TEXT, 1.0)
         status = planner.wait_diag(0, 'map_status')
         assert status['terrain_file_status'] == 'ok' and status['terrain_file'] == str(dem)
         assert float(status['terrain_height_max_m']) == pytest.approx(
@@ -158,40 +142,19 @@ def test_a_terrain_file_is_the_ground_and_the_band_follows_it(tmp_path) -> None:
         wider = load_dem(dem, BOUNDS_XY[0], (12.0, 10.0))
         agl = dense[:, 2] - wider.height_at(dense[:, :2])
         assert MIN_AGL - CHORD_TOL <= agl.min() and agl.max() <= MAX_AGL + CHORD_TOL
-    finally:
-        client.close()
-        process.kill()
 
 
 def test_a_refused_terrain_file_refuses_goals_and_the_node_runs_on(tmp_path) -> None:
     # Pixel centres from 0.5 to 4.5 m: the bounds' -10..10 m are not covered.
     small = write_geotiff(tmp_path / 'small.tif', 0.0, 5.0, 5)
     reason = 'the terrain does not cover the bounds'
-    domain_id = unique_domain_id()
-    namespace = f'{RUN_NAMESPACE}/no_terrain'
     # A height band with no ground but the refused terrain: the node still starts.
-    process = start_planner(domain_id, namespace=namespace, parameters={
-        'plan_without_map': True, 'terrain_file': str(small), 'max_agl': MAX_AGL})
-    client = RosClient(domain_id)
-    try:
-        line = process.wait_for_output('refused terrain_file: ', 1.0)
-        assert f'{small}: {reason}' in line, line
-        planner = PlannerClient(client, namespace, client.record(DiagnosticArray,
-                                                                 '/diagnostics'), process)
-        status = planner.wait_diag(0, 'map_status')
-        assert status['_level'] == ERROR and status['status'] == 'no_map', status
-        assert status['terrain_file_status'] == 'refused', status
-        assert reason in status['terrain_file_refused'], status
-        mark = planner.diagnostics.mark()
-        planner.publish('goal_pose', conv.pose_stamped([0.0, 5.0, 2.0], 'map', 0))
-        refused = planner.wait_diag(mark, 'plan')
-        assert refused['status'] == 'no_map' and refused['_level'] == ERROR, refused
-        assert 'terrain_file refused: ' in refused['message'], refused
-        assert reason in refused['message'], refused
+    with planner_session(f'{RUN_NAMESPACE}/no_terrain', {
+            'plan_without_map': True, 'terrain_file': str(small),
+            'max_agl': MAX_AGL}) as planner:
+        process = planner.process
+        assert_start_file_refused(planner, 'terrain_file', small, reason)
         (result,) = planner.params.set({'terrain_file': ''})
         # Read-only (named at start-up): rclpy refuses it on a running node.
         assert not result.successful and 'read-only parameter: terrain_file' in result.reason
         assert process.process.poll() is None, process.output
-    finally:
-        client.close()
-        process.kill()

@@ -5,16 +5,15 @@ the planner node as a real process.
 import signal
 import time
 
-from diagnostic_msgs.msg import DiagnosticArray
 from helpers.map_files import EMPTY, ply
 import numpy as np
 import pytest
 from visualization_msgs.msg import Marker, MarkerArray
 
-from ros_harness import (assert_clean_exit, marker, marker_array, min_clearance, NodeProcess,
-                         OBSTACLES_QOS, planner_command, PlannerClient, READY_TEXT,
-                         ros_environment, RosClient, RUN_NAMESPACE, start_planner,
-                         STARTUP_TIMEOUT_S, unique_domain_id)
+from ros_harness import (assert_clean_exit, assert_start_file_refused, marker, marker_array,
+                         min_clearance, NodeProcess, OBSTACLES_QOS, planner_command,
+                         planner_session, PlannerClient, READY_TEXT, ros_environment, RosClient,
+                         RUN_NAMESPACE, start_planner, STARTUP_TIMEOUT_S, unique_domain_id)
 from uav_global_planner.core.obstacles import ObstacleSet, PointSet
 from uav_global_planner.ros import conversions as conv
 
@@ -30,67 +29,62 @@ def test_a_map_of_30_incremental_arrays_is_rebuilt_whole_after_a_restart() -> No
     subscription does: a restarted node gets all of them, in order."""
     domain_id = unique_domain_id()
     namespace = f'{RUN_NAMESPACE}/restart'
-    client = RosClient(domain_id)
-    first = start_planner(domain_id, namespace=namespace)
     second = None
-    try:
-        diagnostics = client.record(DiagnosticArray, '/diagnostics')
-        planner = PlannerClient(client, namespace, diagnostics, first)
-        publisher = client.publisher(MarkerArray, planner.prefix + 'obstacles', OBSTACLES_QOS)
-        for number in range(30):
-            # Each array adds one sphere; the 10th also deletes the 5th and adds it back moved.
-            markers = [marker('incremental', number, Marker.SPHERE,
-                              [-9.0 + 0.6 * number, 9.0, 2.0], [0.4, 0.4, 0.4])]
-            if number == 10:
-                markers += [marker('incremental', 5, Marker.SPHERE, [0, 0, 0], [1, 1, 1],
-                                   action=Marker.DELETE),
-                            marker('incremental', 5, Marker.SPHERE, [-6.0, 8.0, 2.0],
-                                   [0.4, 0.4, 0.4])]
-            publisher.publish(marker_array(*markers))
-        planner.wait_obstacle_count(30, timeout_s=20.0)
-        assert_clean_exit(first, first.stop(signal.SIGINT))
-        second = start_planner(domain_id, namespace=namespace)
-        restarted = PlannerClient(client, namespace, diagnostics, second)
-        shown = restarted.wait_obstacle_count(30, restarted.markers.mark(), 20.0)
-        centers = sorted(tuple(round(v, 3) for v in (m.pose.position.x, m.pose.position.y))
-                         for m in shown.markers if m.ns == 'obstacles')
-        expected = sorted([(round(-9.0 + 0.6 * n, 3), 9.0) for n in range(30) if n != 5]
-                          + [(-6.0, 8.0)])
-        assert centers == expected
-        status = restarted.wait_diag(0, 'map_status', check=lambda v: v['obstacles'] == '30')
-        assert int(status['obstacles_accepted']) == 30, status
-    finally:
-        client.close()
-        for process in (first, second):
-            if process is not None:
-                process.kill()
+    with planner_session(namespace, domain_id=domain_id) as planner:
+        client, diagnostics, first = planner.client, planner.diagnostics, planner.process
+        try:
+            publisher = client.publisher(MarkerArray, planner.prefix + 'obstacles',
+                                         OBSTACLES_QOS)
+            for number in range(30):
+                # Each array adds one sphere; the 10th also deletes the 5th and adds it back
+                # moved.
+                markers = [marker('incremental', number, Marker.SPHERE,
+                                  [-9.0 + 0.6 * number, 9.0, 2.0], [0.4, 0.4, 0.4])]
+                if number == 10:
+                    markers += [marker('incremental', 5, Marker.SPHERE, [0, 0, 0], [1, 1, 1],
+                                       action=Marker.DELETE),
+                                marker('incremental', 5, Marker.SPHERE, [-6.0, 8.0, 2.0],
+                                       [0.4, 0.4, 0.4])]
+                publisher.publish(marker_array(*markers))
+            planner.wait_obstacle_count(30, timeout_s=20.0)
+            assert_clean_exit(first, first.stop(signal.SIGINT))
+            second = start_planner(domain_id, namespace=namespace)
+            restarted = PlannerClient(client, namespace, diagnostics, second)
+            shown = restarted.wait_obstacle_count(30, restarted.markers.mark(), 20.0)
+            centers = sorted(tuple(round(v, 3) for v in (m.pose.position.x, m.pose.position.y))
+                             for m in shown.markers if m.ns == 'obstacles')
+            expected = sorted([(round(-9.0 + 0.6 * n, 3), 9.0) for n in range(30) if n != 5]
+                              + [(-6.0, 8.0)])
+            assert centers == expected
+            status = restarted.wait_diag(0, 'map_status',
+                                         check=lambda v: v['obstacles'] == '30')
+            assert int(status['obstacles_accepted']) == 30, status
+        finally:
+            if second is not None:
+                second.kill()
 
 
 def test_a_second_node_with_the_same_name_is_reported_by_both() -> None:
     domain_id = unique_domain_id()
     namespace = f'{RUN_NAMESPACE}/twins'
-    client = RosClient(domain_id)
-    first = start_planner(domain_id, namespace=namespace)
     second = None
-    try:
-        diagnostics = client.record(DiagnosticArray, '/diagnostics')
-        planner = PlannerClient(client, namespace, diagnostics, first)
-        mark, log_mark = diagnostics.mark(), first.mark()
-        second = start_planner(domain_id, namespace=namespace)
-        found = planner.wait_diag(mark, 'duplicate_node', 20.0)
-        assert found['_level'] == ERROR and found['nodes_with_this_name'] == '2', found
-        assert 'stop them or start this one in another namespace' in found['message']
-        line = first.wait_for_output('other node(s) named', 20.0, log_mark)
-        assert f'{namespace}/global_planner' in line
-        second.wait_for_output('other node(s) named', 20.0)
-        # Gone again: the remaining node says so.
-        assert_clean_exit(second, second.stop(signal.SIGINT))
-        first.wait_for_output('is gone', 20.0, log_mark)
-    finally:
-        client.close()
-        for process in (first, second):
-            if process is not None:
-                process.kill()
+    with planner_session(namespace, domain_id=domain_id) as planner:
+        diagnostics, first = planner.diagnostics, planner.process
+        try:
+            mark, log_mark = diagnostics.mark(), first.mark()
+            second = start_planner(domain_id, namespace=namespace)
+            found = planner.wait_diag(mark, 'duplicate_node', 20.0)
+            assert found['_level'] == ERROR and found['nodes_with_this_name'] == '2', found
+            assert 'stop them or start this one in another namespace' in found['message']
+            line = first.wait_for_output('other node(s) named', 20.0, log_mark)
+            assert f'{namespace}/global_planner' in line
+            second.wait_for_output('other node(s) named', 20.0)
+            # Gone again: the remaining node says so.
+            assert_clean_exit(second, second.stop(signal.SIGINT))
+            first.wait_for_output('is gone', 20.0, log_mark)
+        finally:
+            if second is not None:
+                second.kill()
 
 
 def test_a_prior_map_file_is_a_map_and_is_kept_off(tmp_path) -> None:
@@ -104,13 +98,9 @@ def test_a_prior_map_file_is_a_map_and_is_kept_off(tmp_path) -> None:
     np.save(path, wall)
     domain_id = unique_domain_id()
     namespace = f'{RUN_NAMESPACE}/prior'
-    client = RosClient(domain_id)
-    process = start_planner(domain_id, namespace=namespace, parameters={
-        'map_file': str(path), 'map_downsample': 0.2})
-    try:
-        assert 'prior map' in process.wait_for_output(READY_TEXT, 1.0)
-        planner = PlannerClient(client, namespace, client.record(DiagnosticArray,
-                                                                 '/diagnostics'), process)
+    with planner_session(namespace, {'map_file': str(path), 'map_downsample': 0.2},
+                         domain_id) as planner:
+        assert 'prior map' in planner.process.wait_for_output(READY_TEXT, 1.0)
         values, plan = planner.plan_to([0.0, 5.0, 2.0])
         assert values['status'] == 'ok', values
         assert 'map_file: 1 accepted' in values['map_sources'], values
@@ -133,9 +123,6 @@ def test_a_prior_map_file_is_a_map_and_is_kept_off(tmp_path) -> None:
         (result,) = planner.params.set({'map_file': ''})
         # A read-only parameter (read at start-up): rclpy refuses it on a running node.
         assert not result.successful and 'read-only parameter: map_file' in result.reason
-    finally:
-        client.close()
-        process.kill()
     # A file that cannot be read, then one with no points: the node runs without it, says why,
     # and refuses goals until it is restarted with a usable file.
     broken = tmp_path / 'broken.npy'
@@ -144,39 +131,15 @@ def test_a_prior_map_file_is_a_map_and_is_kept_off(tmp_path) -> None:
     ply(EMPTY)(empty)
     for bad, reason in ((broken, 'not a valid NumPy .npy file, or truncated'),
                         (empty, 'no points: the PLY file holds 0 points')):
-        client = RosClient(domain_id)
-        process = start_planner(domain_id, namespace=namespace, parameters={'map_file': str(bad)})
-        try:
-            line = process.wait_for_output('refused map_file: ', 1.0)
-            assert f'{bad}: {reason}' in line, line
-            planner = PlannerClient(client, namespace, client.record(DiagnosticArray,
-                                                                     '/diagnostics'), process)
-            status = planner.wait_diag(0, 'map_status')
-            assert status['_level'] == ERROR and status['status'] == 'no_map', status
-            assert status['map_file_status'] == 'refused', status
-            assert f'{bad}: {reason}' in status['map_file_refused'], status
-            mark = planner.diagnostics.mark()
-            planner.publish('goal_pose', conv.pose_stamped([0.0, 5.0, 2.0], 'map', 0))
-            refused = planner.wait_diag(mark, 'plan')
-            assert refused['status'] == 'no_map' and refused['_level'] == ERROR, refused
-            assert 'map_file refused: ' in refused['message'], refused
-            assert reason in refused['message'], refused
-            assert process.process.poll() is None, process.output
-        finally:
-            client.close()
-            process.kill()
+        with planner_session(namespace, {'map_file': str(bad)}, domain_id) as planner:
+            assert_start_file_refused(planner, 'map_file', bad, reason)
+            assert planner.process.process.poll() is None, planner.process.output
 
 
 def test_a_frame_switch_during_a_long_plan_cancels_it_and_withdraws_the_old_plan() -> None:
-    domain_id = unique_domain_id()
-    namespace = f'{RUN_NAMESPACE}/frames'
-    client = RosClient(domain_id)
-    process = start_planner(domain_id, namespace=namespace, parameters={
-        'resolution': 0.1, 'algorithm': 'dijkstra', 'max_planning_time': 120.0,
-        'plan_without_map': True})
-    try:
-        planner = PlannerClient(client, namespace, client.record(DiagnosticArray,
-                                                                 '/diagnostics'), process)
+    with planner_session(f'{RUN_NAMESPACE}/frames', {
+            'resolution': 0.1, 'algorithm': 'dijkstra', 'max_planning_time': 120.0,
+            'plan_without_map': True}) as planner:
         values, _ = planner.plan_to([1.0, -4.0, 1.0], timeout_s=60.0)
         assert values['status'] == 'ok', values
         mark, plans = planner.diagnostics.mark(), planner.plans.mark()
@@ -195,9 +158,6 @@ def test_a_frame_switch_during_a_long_plan_cancels_it_and_withdraws_the_old_plan
         # The new frame plans: goals in it are taken (open air here).
         values, plan = planner.plan_to([1.0, -4.0, 1.0], frame_id='world', timeout_s=60.0)
         assert values['status'] == 'ok' and plan.header.frame_id == 'world', values
-    finally:
-        client.close()
-        process.kill()
 
 
 def test_the_node_starts_with_the_shipped_defaults_from_the_console_script() -> None:

@@ -25,13 +25,10 @@ PX4 v1.15 and v1.16; the others have had the same fields from v1.15 to v1.17, so
 are those of every release in that range.
 """
 
-import ctypes
-from pathlib import Path
 import re
-import subprocess
-import sys
 from typing import Dict
 
+from helpers.interface_packages import assert_build_is_current, compiled_type_hash, prefix_of
 import pytest
 from rclpy.qos import qos_check_compatible, QoSCompatibility
 
@@ -66,35 +63,10 @@ PX4_V1_16_TYPE_HASHES: Dict[str, str] = {
         'RIHS01_828bddbb7d4c2aa6ad93757955f6893be1ec5d8f11885ec7715bcdd76b5226c9',
 }
 
-REPO_ROOT = Path(__file__).resolve().parents[1]
-
-
-class _TypeHash(ctypes.Structure):
-    """``rosidl_type_hash_t``: a version byte and 32 bytes of SHA-256."""
-
-    _fields_ = [('version', ctypes.c_uint8), ('value', ctypes.c_uint8 * 32)]
-
-
-def compiled_type_hash(type_name: str) -> str:
-    """The RIHS01 hash the compiled C type support of ``type_name`` reports.
-
-    Parameters
-    ----------
-    type_name : str
-        For example ``'px4_msgs/msg/VehicleOdometry'``.
-    """
-    package, kind, name = type_name.split('/')
-    prefix = Path(px4_msgs.__file__).resolve().parents[4]
-    library = ctypes.CDLL(str(prefix / 'lib' / f'lib{package}__rosidl_generator_c.so'))
-    function = getattr(library, f'{package}__{kind}__{name}__get_type_hash')
-    function.restype = ctypes.POINTER(_TypeHash)
-    function.argtypes = [ctypes.c_void_p]
-    found = function(None).contents
-    return f'RIHS{found.version:02d}_' + bytes(found.value).hex()
-
 
 def test_built_message_hashes_equal_px4_v1_16():
-    found = {name: compiled_type_hash(name) for name in PX4_V1_16_TYPE_HASHES}
+    prefix = prefix_of(px4_msgs)
+    found = {name: compiled_type_hash(name, prefix) for name in PX4_V1_16_TYPE_HASHES}
     wrong = {name: (found[name], PX4_V1_16_TYPE_HASHES[name]) for name in found
              if found[name] != PX4_V1_16_TYPE_HASHES[name]}
     assert not wrong, f'type hashes differ from PX4 v1.16 (built, expected): {wrong}'
@@ -152,9 +124,4 @@ def test_namespaced_topics():
 
 
 def test_build_script_returns_at_once_when_nothing_changed():
-    if not (Path(sys.prefix) / '.px4_msgs.sha256').is_file():
-        pytest.skip('px4_msgs does not come from scripts/build_interfaces.sh here')
-    run = subprocess.run(['bash', str(REPO_ROOT / 'scripts' / 'build_interfaces.sh'),
-                          sys.prefix], capture_output=True, text=True, timeout=600)
-    assert run.returncode == 0, run.stderr
-    assert run.stdout == '' and run.stderr == '', (run.stdout, run.stderr)
+    assert_build_is_current('px4_msgs')

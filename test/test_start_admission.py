@@ -224,6 +224,13 @@ def uav_plan(*args):
     return subprocess.run([executable, *args], capture_output=True, text=True, timeout=600)
 
 
+def plan_json(scene: str, code: int) -> dict:
+    """``uav-plan plan SCENE --json``, which must exit with ``code``: its printed result."""
+    run = uav_plan('plan', scene, '--json')
+    assert run.returncode == code, run.stdout + run.stderr
+    return json.loads(run.stdout)
+
+
 def _scene(tmp_path: Path, start, goal, **extra) -> str:
     document = {'bounds': {'min': [0.0, 0.0, 0.0], 'max': [10.0, 10.0, 6.0]},
                 'resolution': DELTA, 'safety_margin': GAMMA, 'adaptive_threshold': 1.5,
@@ -237,9 +244,7 @@ def _scene(tmp_path: Path, start, goal, **extra) -> str:
 
 def test_cli_lifts_a_start_below_the_floor_and_reports_it(tmp_path):
     scene = _scene(tmp_path, [1.0, 2.0, -0.3], [8.0, 8.0, 4.0])
-    run = uav_plan('plan', scene, '--json')
-    assert run.returncode == 0, run.stdout + run.stderr
-    result = json.loads(run.stdout)
+    result = plan_json(scene, 0)
     assert result['status'] == 'ok'
     assert result['start_adjusted'] is True and result['goal_adjusted'] is False
     assert result['requested_start'] == [1.0, 2.0, -0.3]
@@ -253,9 +258,7 @@ def test_cli_lifts_a_start_below_the_floor_and_reports_it(tmp_path):
 
 def test_cli_refuses_a_start_far_below_the_floor_with_the_fix(tmp_path):
     scene = _scene(tmp_path, [1.0, 2.0, -0.8], [8.0, 8.0, 4.0])
-    run = uav_plan('plan', scene, '--json')
-    assert run.returncode == 1, run.stdout + run.stderr
-    result = json.loads(run.stdout)
+    result = plan_json(scene, 1)
     assert result['status'] == 'start_outside_map'
     assert result['message'].endswith(FLOOR_REFUSAL)
     assert result['start_adjusted'] is False and result['requested_start'] == [1.0, 2.0, -0.8]
@@ -278,9 +281,7 @@ def test_cli_refuses_a_negative_start_tolerance():
 
 def test_cli_lifts_a_goal_on_the_ground(tmp_path):
     scene = _scene(tmp_path, [1.0, 2.0, 1.0], [8.0, 8.0, 0.0], ground='floor')
-    run = uav_plan('plan', scene, '--json')
-    assert run.returncode == 0, run.stdout + run.stderr
-    result = json.loads(run.stdout)
+    result = plan_json(scene, 0)
     assert result['goal_adjusted'] is True and result['start_adjusted'] is False
     assert result['requested_goal'] == [8.0, 8.0, 0.0]
     assert result['goal'][:2] == [8.0, 8.0] and result['goal'][2] > GAMMA

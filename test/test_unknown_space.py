@@ -57,11 +57,22 @@ def write_corridor_scan(file: Path) -> None:
     assert tree.writeBinary(str(file).encode())
 
 
+def scene_document(**extra) -> dict:
+    """The scene of these tests (BOUNDS, START, GOAL [m]) with the keys ``extra``."""
+    return {'bounds': {'min': BOUNDS[0], 'max': BOUNDS[1]}, 'resolution': 0.25,
+            'safety_margin': 0.2, 'adaptive_threshold': 1.5, 'start': START, 'goal': GOAL,
+            **extra}
+
+
+def plan_scene(scene, algorithm: str = 'octile'):
+    """The plan from the scene's start to its goal, around or through its unknown space."""
+    return Planner(scene.config, scene.obstacles, unknown=scene.unknown).plan(
+        scene.start, scene.goal, algorithm)
+
+
 def write_scene(folder: Path, **extra) -> Path:
     write_corridor_scan(folder / 'scan.bt')
-    document = {'bounds': {'min': BOUNDS[0], 'max': BOUNDS[1]}, 'resolution': 0.25,
-                'safety_margin': 0.2, 'adaptive_threshold': 1.5, 'start': START, 'goal': GOAL,
-                'obstacles': [{'type': 'points_file', 'path': 'scan.bt'}], **extra}
+    document = scene_document(obstacles=[{'type': 'points_file', 'path': 'scan.bt'}], **extra)
     file = folder / 'scene.yaml'
     file.write_text(yaml.safe_dump(document))
     return file
@@ -193,8 +204,7 @@ def test_known_volume_leaves_its_complement_unknown():
 
 def plan(file: Path, **overrides):
     scene = load_scene(file, overrides=overrides)
-    planner = Planner(scene.config, scene.obstacles, unknown=scene.unknown)
-    return scene, planner.plan(scene.start, scene.goal, 'octile')
+    return scene, plan_scene(scene)
 
 
 def test_free_cuts_through_the_unobserved_room(tmp_path):
@@ -233,8 +243,7 @@ def test_cost_weighs_a_detour_against_metres_in_unknown_space(tmp_path, algorith
     lengths = {}
     for rate in (0.0, 0.05, 10.0):
         scene = load_scene(file, overrides={'unknown_space': 'cost', 'unknown_cost': rate})
-        result = Planner(scene.config, scene.obstacles, unknown=scene.unknown).plan(
-            scene.start, scene.goal, algorithm)
+        result = plan_scene(scene, algorithm)
         assert result.ok, result.message
         lengths[rate] = result.unknown_length_m
     # Free of charge it is the free plan; cheap, it still cuts the room; dear, it goes around
@@ -282,17 +291,11 @@ def test_the_policy_can_change_on_a_planner(tmp_path):
 
 
 def test_known_volume_of_a_scene(tmp_path):
-    document = {'bounds': {'min': BOUNDS[0], 'max': BOUNDS[1]}, 'resolution': 0.25,
-                'safety_margin': 0.2, 'adaptive_threshold': 1.5, 'start': START, 'goal': GOAL,
-                'known_volume': [{'min': [0.0, 0.0, 0.0], 'max': [12.0, 2.0, 4.0]},
-                                 {'min': [10.0, 0.0, 0.0], 'max': [12.0, 8.0, 4.0]}]}
-    scene = parse_scene(document)
-    result = Planner(scene.config, scene.obstacles, unknown=scene.unknown).plan(
-        scene.start, scene.goal, 'octile')
+    document = scene_document(known_volume=[{'min': [0.0, 0.0, 0.0], 'max': [12.0, 2.0, 4.0]},
+                                            {'min': [10.0, 0.0, 0.0], 'max': [12.0, 8.0, 4.0]}])
+    result = plan_scene(parse_scene(document))
     assert result.ok and result.unknown_length_m == 0.0
-    free = parse_scene({**document, 'unknown_space': 'free'})
-    result = Planner(free.config, free.obstacles, unknown=free.unknown).plan(
-        free.start, free.goal, 'octile')
+    result = plan_scene(parse_scene({**document, 'unknown_space': 'free'}))
     assert result.ok and result.unknown_length_m > 3.0
     with pytest.raises(InvalidInputError, match=r'known_volume\[0\]: min must be below max'):
         parse_scene({**document, 'known_volume': [{'min': [1, 1, 1], 'max': [0, 2, 2]}]})
@@ -302,13 +305,9 @@ def test_known_volume_of_a_scene(tmp_path):
 
 def test_no_path_through_unobserved_space_says_which_setting_opens_it():
     # Two observed halves with an unobserved slab between them.
-    document = {'bounds': {'min': BOUNDS[0], 'max': BOUNDS[1]}, 'resolution': 0.25,
-                'safety_margin': 0.2, 'adaptive_threshold': 1.5, 'start': START, 'goal': GOAL,
-                'known_volume': [{'min': [0.0, 0.0, 0.0], 'max': [5.0, 8.0, 4.0]},
-                                 {'min': [6.0, 0.0, 0.0], 'max': [12.0, 8.0, 4.0]}]}
-    scene = parse_scene(document)
-    result = Planner(scene.config, scene.obstacles, unknown=scene.unknown).plan(
-        scene.start, scene.goal, 'octile')
+    result = plan_scene(parse_scene(scene_document(
+        known_volume=[{'min': [0.0, 0.0, 0.0], 'max': [5.0, 8.0, 4.0]},
+                      {'min': [6.0, 0.0, 0.0], 'max': [12.0, 8.0, 4.0]}])))
     assert result.status is PlanStatus.NO_VALID_PATH
     assert '32.0 m^3 the map never observed' in result.message
     assert 'unknown_space cost or free may find a path' in result.message
@@ -328,10 +327,8 @@ def test_command_line_reports_the_length_and_takes_the_flags(tmp_path, capsys):
 
 def test_a_map_given_on_the_command_line_brings_its_unknown_space(tmp_path, capsys):
     write_corridor_scan(tmp_path / 'scan.bt')
-    document = {'bounds': {'min': BOUNDS[0], 'max': BOUNDS[1]}, 'resolution': 0.25,
-                'safety_margin': 0.2, 'adaptive_threshold': 1.5, 'start': START, 'goal': GOAL}
     file = tmp_path / 'plain.yaml'
-    file.write_text(yaml.safe_dump(document))
+    file.write_text(yaml.safe_dump(scene_document()))
     assert main(['plan', str(file), '--json', '--map', str(tmp_path / 'scan.bt'),
                  '--unknown-space', 'free']) == 0
     assert json.loads(capsys.readouterr().out)['unknown_length_m'] > 3.0

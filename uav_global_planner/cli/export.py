@@ -29,6 +29,7 @@ from uav_global_planner.core.mission import (build_mission, END_ACTIONS, FIRMWAR
                                              UncertifiableMissionError, write_mission)
 from uav_global_planner.core.planner import Planner
 from uav_global_planner.core.scene import Scene
+from uav_global_planner.core.text_files import parse_text_file
 
 EXIT_OK = 0
 EXIT_FAILED = 1
@@ -131,12 +132,8 @@ def load_plan_file(path: str) -> Dict[str, np.ndarray]:
         When the file is unreadable, not JSON, not a plan result, or a failed plan.
     """
     file = Path(path)
-    try:
-        data = json.loads(file.read_text(encoding='utf-8'))
-    except OSError as error:
-        raise InvalidInputError(f'{file}: cannot read plan file ({error.strerror})') from None
-    except (UnicodeDecodeError, json.JSONDecodeError) as error:
-        raise InvalidInputError(f'{file}: not a JSON plan result ({error})') from None
+    data = parse_text_file(file, 'plan file', json.loads, json.JSONDecodeError,
+                           'not a JSON plan result')
     if not isinstance(data, dict) or 'status' not in data or 'smoothed_path' not in data:
         raise InvalidInputError(f'{file}: not a "uav-plan plan --json" result (needs status and '
                                 'smoothed_path)')

@@ -12,8 +12,7 @@ from typing import Any, List, Optional, Tuple, Union
 
 import numpy as np
 
-from uav_global_planner.cli.plotting import _obstacle_mesh
-from uav_global_planner.core.errors import MissingDependencyError
+from uav_global_planner.cli.plotting import obstacle_mesh_trace, plotly_objects
 from uav_global_planner.core.fleet import FleetResult, Flight
 from uav_global_planner.core.scene import Scene
 
@@ -71,22 +70,15 @@ def fleet_figure(scene: Scene, result: FleetResult, frame_step_s: float = 10.0,
     MissingDependencyError
         When plotly is not installed; the message names the pip package.
     """
-    try:
-        import plotly.graph_objects as go
-    except ImportError:
-        raise MissingDependencyError(
-            "the fleet view needs the Python package 'plotly', which is not installed: "
-            'pip install plotly (or pip install uav_global_planner[plot])') from None
+    go = plotly_objects('fleet view')
     flights = [o.flight for o in result.accepted if o.flight is not None]
     settings = result.settings
     radius = 0.5 * settings.horizontal_separation
     height = settings.vertical_separation
     traces = []
-    mesh = _obstacle_mesh(scene.obstacles)
+    mesh = obstacle_mesh_trace(go, scene.obstacles, opacity=0.25, name='buildings')
     if mesh is not None:
-        (x, y, z), (i, j, k) = mesh[0].T, mesh[1].T
-        traces.append(go.Mesh3d(x=x, y=y, z=z, i=i, j=j, k=k, color='gray', opacity=0.25,
-                                flatshading=True, name='buildings', hoverinfo='skip'))
+        traces.append(mesh)
     paths = []
     for flight in flights:
         _, points = flight.sample(max(1.0, flight.duration_s / 200.0))

@@ -6,7 +6,7 @@ behind the buildings.
 """
 
 from pathlib import Path
-from typing import List, Mapping, Optional, Union
+from typing import Any, Dict, List, Mapping, Optional, Tuple, Union
 
 import matplotlib
 matplotlib.use('Agg')
@@ -28,6 +28,9 @@ _OBSTACLE_COLOUR = '0.55'
 _OBSTACLE_ALPHA = 0.25
 # Obstacles first, paths above them, start and goal on top.
 _Z_OBSTACLES, _Z_PATHS, _Z_ENDPOINTS = 1, 10, 20
+# Faces and outlines of the obstacle patches (2D views) and box faces (3D view).
+_OBSTACLE_FACES: Dict[str, Any] = {'facecolor': _OBSTACLE_COLOUR, 'edgecolor': '0.35',
+                                   'alpha': _OBSTACLE_ALPHA, 'zorder': _Z_OBSTACLES}
 # Point sets are drawn from an evenly spread subset: a million dots only paint the same pixels.
 _MAX_DRAWN_POINTS = 60_000
 # The ground (terrain, flat ground) and the AGL band's surfaces; the 3D view draws them from at
@@ -51,6 +54,15 @@ def _drawn_points(points: np.ndarray, limit: int) -> np.ndarray:
     return points[np.linspace(0, len(points) - 1, limit).astype(np.int64)]
 
 
+def _draw_point_obstacles(axes, obstacles: ObstacleSet, columns: Tuple[int, ...]) -> None:
+    """Scatter an evenly spread subset of the point obstacles on the axes ``columns`` (0 = x,
+    1 = y, 2 = z) of a 3D view or a plane."""
+    if len(obstacles.points):
+        pts = _drawn_points(obstacles.points, _MAX_DRAWN_POINTS)
+        axes.scatter(*(pts[:, column] for column in columns), s=1, c='0.35', alpha=0.3,
+                     linewidths=0, zorder=_Z_OBSTACLES, rasterized=True)
+
+
 def _draw_obstacles_3d(axes, obstacles: ObstacleSet) -> None:
     u, v = np.mgrid[0:2 * np.pi:24j, 0:np.pi:12j]
     unit = np.stack([np.cos(u) * np.sin(v), np.sin(u) * np.sin(v), np.cos(v)])
@@ -63,13 +75,8 @@ def _draw_obstacles_3d(axes, obstacles: ObstacleSet) -> None:
              for face in _BOX_FACES]
     if faces:
         # One collection for every box: a town of hundreds of buildings stays quick to draw.
-        axes.add_collection3d(Poly3DCollection(faces, facecolor=_OBSTACLE_COLOUR,
-                                               edgecolor='0.35', linewidth=0.3,
-                                               alpha=_OBSTACLE_ALPHA, zorder=_Z_OBSTACLES))
-    if len(obstacles.points):
-        pts = _drawn_points(obstacles.points, _MAX_DRAWN_POINTS)
-        axes.scatter(pts[:, 0], pts[:, 1], pts[:, 2], s=1, c='0.35', alpha=0.3, linewidths=0,
-                     zorder=_Z_OBSTACLES, rasterized=True)
+        axes.add_collection3d(Poly3DCollection(faces, linewidth=0.3, **_OBSTACLE_FACES))
+    _draw_point_obstacles(axes, obstacles, (0, 1, 2))
     for field in obstacles.height_fields:
         x, y, z = _height_field_nodes(field)
         ground = field.label in ('terrain', 'ground')
@@ -116,13 +123,8 @@ def _draw_obstacles_2d(axes, obstacles: ObstacleSet, horizontal: int, vertical: 
                           hi[vertical] - lo[vertical])
                 for lo, hi in zip(obstacles.box_mins, obstacles.box_maxs)]
     if patches:
-        axes.add_collection(PatchCollection(patches, facecolor=_OBSTACLE_COLOUR,
-                                            edgecolor='0.35', linewidth=0.4,
-                                            alpha=_OBSTACLE_ALPHA, zorder=_Z_OBSTACLES))
-    if len(obstacles.points):
-        pts = _drawn_points(obstacles.points, _MAX_DRAWN_POINTS)
-        axes.scatter(pts[:, horizontal], pts[:, vertical], s=1, c='0.35', alpha=0.3,
-                     linewidths=0, zorder=_Z_OBSTACLES, rasterized=True)
+        axes.add_collection(PatchCollection(patches, linewidth=0.4, **_OBSTACLE_FACES))
+    _draw_point_obstacles(axes, obstacles, (horizontal, vertical))
 
 
 def _draw_paths(axes, scene: Scene, paths: Mapping[str, np.ndarray], axes_index=None) -> None:
@@ -253,6 +255,48 @@ def _obstacle_mesh(obstacles: ObstacleSet):
     return np.concatenate(vertices), np.concatenate(triangles)
 
 
+def plotly_objects(view: str):
+    """The module ``plotly.graph_objects``, imported when a page is drawn.
+
+    Parameters
+    ----------
+    view : str
+        What the page is, for the message (``'interactive view'``, ``'fleet view'``).
+
+    Raises
+    ------
+    MissingDependencyError
+        When plotly is not installed; the message names the pip package.
+    """
+    try:
+        import plotly.graph_objects as go
+    except ImportError:
+        raise MissingDependencyError(
+            f"the {view} needs the Python package 'plotly', which is not installed: "
+            'pip install plotly (or pip install uav_global_planner[plot])') from None
+    return go
+
+
+def obstacle_mesh_trace(go, obstacles: ObstacleSet, **style):
+    """One grey ``Mesh3d`` trace of every sphere and box, or None when there are none.
+
+    Parameters
+    ----------
+    go : module
+        ``plotly.graph_objects`` (:func:`plotly_objects`).
+    obstacles : ObstacleSet
+        Spheres and boxes in the map frame (ENU) [m].
+    **style
+        Further ``Mesh3d`` arguments (``opacity``, ``name``, ``showlegend``).
+    """
+    mesh = _obstacle_mesh(obstacles)
+    if mesh is None:
+        return None
+    (x, y, z), (i, j, k) = mesh[0].T, mesh[1].T
+    return go.Mesh3d(x=x, y=y, z=z, i=i, j=j, k=k, color='gray', flatshading=True,
+                     hoverinfo='skip', **style)
+
+
 def scene_figure(scene: Scene, paths: Mapping[str, np.ndarray], title: Optional[str] = None):
     """The interactive 3D view of the scene and paths as a plotly figure.
 
@@ -275,19 +319,12 @@ def scene_figure(scene: Scene, paths: Mapping[str, np.ndarray], title: Optional[
     MissingDependencyError
         When plotly is not installed; the message names the pip package.
     """
-    try:
-        import plotly.graph_objects as go
-    except ImportError:
-        raise MissingDependencyError(
-            "the interactive view needs the Python package 'plotly', which is not installed: "
-            'pip install plotly (or pip install uav_global_planner[plot])') from None
+    go = plotly_objects('interactive view')
     traces = []
-    mesh = _obstacle_mesh(scene.obstacles)
+    mesh = obstacle_mesh_trace(go, scene.obstacles, opacity=0.3, name='obstacles',
+                               showlegend=True)
     if mesh is not None:
-        (x, y, z), (i, j, k) = mesh[0].T, mesh[1].T
-        traces.append(go.Mesh3d(x=x, y=y, z=z, i=i, j=j, k=k, color='gray', opacity=0.3,
-                                flatshading=True, name='obstacles', showlegend=True,
-                                hoverinfo='skip'))
+        traces.append(mesh)
     if len(scene.obstacles.points):
         pts = _drawn_points(scene.obstacles.points, _MAX_HTML_POINTS)
         traces.append(go.Scatter3d(x=pts[:, 0], y=pts[:, 1], z=pts[:, 2], mode='markers',

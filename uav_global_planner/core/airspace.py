@@ -55,9 +55,11 @@ from uav_global_planner.core.errors import (GoalOccupiedError, GoalOutsideMapErr
                                             InvalidInputError, StartOccupiedError,
                                             StartOutsideMapError)
 from uav_global_planner.core.geodesy import geodetic_to_enu, GeodeticOrigin
+from uav_global_planner.core.grid import finite_point
 from uav_global_planner.core.obstacles import ObstacleSet
 from uav_global_planner.core.spatial_index import (BOX, CIRCLE_FENCE, CYLINDER, FENCE, PRISM,
                                                    row_gaps, TableShape, UNBOUNDED_KINDS)
+from uav_global_planner.core.text_files import parse_text_file
 
 #: Most vertices of one polygon: validation compares every pair of edges.
 MAX_POLYGON_VERTICES = 4096
@@ -90,15 +92,7 @@ def _band(floor: Any, ceiling: Any) -> Tuple[float, float]:
 
 
 def _plane_point(value: Any, name: str) -> np.ndarray:
-    try:
-        point = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise InvalidInputError(f'{name}: must be two numbers [x, y], got {value!r}') from None
-    if point.shape != (2,):
-        raise InvalidInputError(f'{name}: must be two numbers [x, y], got {value!r}')
-    if not np.all(np.isfinite(point)):
-        raise InvalidInputError(f'{name}: must be finite, got {point.tolist()}')
-    return point
+    return finite_point(value, f'{name}:', 'xy')
 
 
 def _radius(value: Any) -> float:
@@ -638,14 +632,8 @@ def load_qgc_plan(path: Union[str, Path], origin: Optional[GeodeticOrigin], floo
     """Read the ``geoFence`` of a QGroundControl ``.plan`` file (see
     :func:`parse_qgc_geofence` for the arguments)."""
     file = Path(path)
-    try:
-        plan = json.loads(file.read_text(encoding='utf-8'))
-    except OSError as error:
-        raise InvalidInputError(f'{file}: cannot read plan file ({error.strerror})') from None
-    except UnicodeDecodeError:
-        raise InvalidInputError(f'{file}: not a text file, so not a plan file') from None
-    except json.JSONDecodeError as error:
-        raise InvalidInputError(f'{file}: not valid JSON ({error})') from None
+    plan = parse_text_file(file, 'plan file', json.loads, json.JSONDecodeError, 'not valid JSON',
+                           not_text='not a text file, so not a plan file')
     return parse_qgc_geofence(plan, origin, floor, ceiling, zone_floor, zone_ceiling,
                               name=file.name)
 
@@ -674,12 +662,8 @@ def load_geofence(path: Union[str, Path], origin: Optional[GeodeticOrigin] = Non
     if file.suffix.lower() == '.plan':
         return load_qgc_plan(file, origin, floor, ceiling)
     import yaml  # the scene module's parser; imported here, where YAML is read
-    try:
-        data = yaml.safe_load(file.read_text(encoding='utf-8'))
-    except OSError as error:
-        raise InvalidInputError(f'{file}: cannot read geofence file ({error.strerror})') from None
-    except (UnicodeDecodeError, yaml.YAMLError) as error:
-        raise InvalidInputError(f'{file}: not a YAML geofence file ({error})') from None
+    data = parse_text_file(file, 'geofence file', yaml.safe_load, yaml.YAMLError,
+                           'not a YAML geofence file')
     if isinstance(data, dict) and 'geofence' in data:
         return _prefixed(file.name, parse_geofence, data['geofence'], sep=': ')
     return _prefixed(file.name, parse_geofence, data, sep=': ')

@@ -39,6 +39,35 @@ _RAISE_CAP = ('or raise max_voxels (scene key max_voxels, uav-plan --max-voxels 
 _CELL_EPS = 1e-9
 
 
+def finite_point(value, label: str, axes: str = 'xyz') -> np.ndarray:
+    """Return ``value`` as a finite float64 array with one item per axis.
+
+    Parameters
+    ----------
+    value : array_like
+    label : str
+        Start of the message (``'start'``, or ``'center:'`` for a key path).
+    axes : str
+        Axis letters, ``'xyz'`` (shape (3,)) or ``'xy'`` (shape (2,)).
+
+    Raises
+    ------
+    InvalidInputError
+        ``<label> must be three numbers [x, y, z], got ...`` (or ``two numbers [x, y]``), or
+        ``<label> must be finite, got ...``.
+    """
+    wanted = f"{('two', 'three')[len(axes) - 2]} numbers [{', '.join(axes)}]"
+    try:
+        point = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise InvalidInputError(f'{label} must be {wanted}, got {value!r}') from None
+    if point.shape != (len(axes),):
+        raise InvalidInputError(f'{label} must be {wanted}, got {value!r}')
+    if not np.all(np.isfinite(point)):
+        raise InvalidInputError(f'{label} must be finite, got {point.tolist()}')
+    return point
+
+
 def as_point(value, name: str) -> np.ndarray:
     """Return ``value`` as a finite float64 array of shape (3,).
 
@@ -47,15 +76,7 @@ def as_point(value, name: str) -> np.ndarray:
     InvalidInputError
         If ``value`` is not three finite numbers; the message names ``name``.
     """
-    try:
-        point = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise InvalidInputError(f'{name} must be three numbers [x, y, z], got {value!r}') from None
-    if point.shape != (3,):
-        raise InvalidInputError(f'{name} must be three numbers [x, y, z], got {value!r}')
-    if not np.all(np.isfinite(point)):
-        raise InvalidInputError(f'{name} must be finite, got {point.tolist()}')
-    return point
+    return finite_point(value, name)
 
 
 def positive_number(name: str, value, unit: str = '') -> float:

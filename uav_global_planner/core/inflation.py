@@ -954,12 +954,6 @@ def _ball_visits(grid: VoxelGrid, count: int, gamma: float) -> float:
     return count * per_point
 
 
-def _stamp_spheres(blocked, origin, delta, ranges, centers, radii, gamma) -> None:
-    """Every sphere's nodes within gamma, on a whole-grid mask."""
-    _stamp_spheres_in(blocked, _ZERO_BASE, origin, delta, ranges,
-                      np.arange(len(radii), dtype=np.int64), centers, radii, gamma)
-
-
 @njit
 def _window(ranges, s, base, blocked):  # pragma: no cover - compiled
     """Index range of item ``s`` clipped to the window ``blocked`` of the grid at ``base``."""
@@ -968,25 +962,19 @@ def _window(ranges, s, base, blocked):  # pragma: no cover - compiled
             max(ranges[s, 0, 2], base[2]), min(ranges[s, 1, 2], base[2] + blocked.shape[2] - 1))
 
 
+def _stamp_spheres(blocked, origin, delta, ranges, centers, radii, gamma) -> None:
+    """Every sphere's nodes within gamma, on a whole-grid mask."""
+    _stamp_spheres_in(blocked, _ZERO_BASE, origin, delta, ranges,
+                      np.arange(len(radii), dtype=np.int64), centers, radii, gamma)
+
+
 @njit
 def _stamp_spheres_in(blocked, base, origin, delta, ranges, items, centers, radii,
                       gamma):  # pragma: no cover - compiled
-    # The distance is formed exactly as in obstacles._nearest_sphere_gap, dx, dy, dz being the
-    # node minus the centre; the node is blocked iff max(gap, 0) <= gamma, i.e. gap <= gamma.
-    # Along a z row the computed dz is monotone in k (rounding is monotone), so the computed
-    # distance falls and then rises: the blocked nodes of a row are one run. Its two ends are
-    # found with the exact test and the nodes between them are blocked without one. The mask
-    # ``blocked`` is the window of the grid from node ``base`` on (indices stay global).
-    for n in range(items.shape[0]):
-        s = items[n]
-        i0, i1, j0, j1, k0, k1 = _window(ranges, s, base, blocked)
-        for i in range(i0, i1 + 1):
-            dx = (origin[0] + i * delta) - centers[s, 0]
-            for j in range(j0, j1 + 1):
-                dy = (origin[1] + j * delta) - centers[s, 1]
-                row = dx * dx + dy * dy
-                _stamp_row(blocked, base, i, j, k0, k1, origin[2], delta, row, False,
-                           centers[s, 2], radii[s], gamma)
+    """The nodes within gamma of the spheres ``items``, on the window ``blocked`` of the grid
+    from node ``base`` on (:func:`_stamp_in` with each sphere's centre as its extent)."""
+    _stamp_in(blocked, base, origin, delta, ranges, items, centers, centers, centers[:, 2],
+              radii, False, gamma)
 
 
 @njit
@@ -1025,22 +1013,35 @@ def _stamp_boxes(blocked, origin, delta, ranges, mins, maxs, gamma) -> None:
 @njit
 def _stamp_boxes_in(blocked, base, origin, delta, ranges, items, mins, maxs,
                     gamma):  # pragma: no cover - compiled
-    # obstacles.box_distance per node: the excess beyond the box along each axis,
-    # max(lo - p, p - hi, 0), squared and summed x, y, z, then the square root. The excess
-    # along z falls and then rises with k, so, as for spheres, each row's blocked nodes are one
-    # run between two ends found by the exact test.
+    """The nodes within gamma of the boxes ``items``, on the window ``blocked`` of the grid
+    from node ``base`` on (:func:`_stamp_in`)."""
+    _stamp_in(blocked, base, origin, delta, ranges, items, mins, maxs, mins[:, 2], maxs[:, 2],
+              True, gamma)
+
+
+@njit(inline='always')
+def _stamp_in(blocked, base, origin, delta, ranges, items, lows, highs, a, b, box,
+              gamma):  # pragma: no cover - compiled
+    # Inlined by numba into the sphere and the box kernel, each compiled with its own ``box``.
+    # Item s spans lows[s] to highs[s] horizontally (a sphere: its centre, both times): the
+    # horizontal part of a node's squared distance is the squared excess beyond that span
+    # along x and y, max(lo - p, p - hi, 0) (for a sphere |p - c|, whose square is that of
+    # p - c to the bit), as in obstacles._nearest_sphere_gap and obstacles.box_distance. The
+    # vertical part (box: the excess beyond a[s]..b[s]; sphere: centre height a[s], radius
+    # b[s]) falls and then rises along a z row (rounding is monotone), so each row's blocked
+    # nodes are one run whose two ends :func:`_stamp_row` finds with the exact test. The mask
+    # ``blocked`` is the window of the grid from node ``base`` on (indices stay global).
     for n in range(items.shape[0]):
-        b = items[n]
-        i0, i1, j0, j1, k0, k1 = _window(ranges, b, base, blocked)
+        s = items[n]
+        i0, i1, j0, j1, k0, k1 = _window(ranges, s, base, blocked)
         for i in range(i0, i1 + 1):
             x = origin[0] + i * delta
-            ex = max(max(mins[b, 0] - x, x - maxs[b, 0]), 0.0)
+            ex = max(max(lows[s, 0] - x, x - highs[s, 0]), 0.0)
             for j in range(j0, j1 + 1):
                 y = origin[1] + j * delta
-                ey = max(max(mins[b, 1] - y, y - maxs[b, 1]), 0.0)
-                row = ex * ex + ey * ey
-                _stamp_row(blocked, base, i, j, k0, k1, origin[2], delta, row, True,
-                           mins[b, 2], maxs[b, 2], gamma)
+                ey = max(max(lows[s, 1] - y, y - highs[s, 1]), 0.0)
+                _stamp_row(blocked, base, i, j, k0, k1, origin[2], delta, ex * ex + ey * ey,
+                           box, a[s], b[s], gamma)
 
 
 @njit

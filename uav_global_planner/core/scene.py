@@ -68,6 +68,7 @@ from uav_global_planner.core.mapfiles import load_map_points, MapReport
 from uav_global_planner.core.obstacles import Box, Obstacle, ObstacleSet, PointSet, Sphere
 from uav_global_planner.core.settings import planner_settings, Setting
 from uav_global_planner.core.terrain import HeightField
+from uav_global_planner.core.text_files import parse_text_file
 from uav_global_planner.core.unknown_space import scene_unknown, UnknownSpace
 
 # Top-level keys that are scene data, not settings; the settings' keys come from the table.
@@ -434,17 +435,10 @@ def load_scene(path: Union[str, Path], base: PlannerConfig = PlannerConfig(),
         invalid key (named by its path).
     """
     file = Path(path)
-    try:
-        text = file.read_text(encoding='utf-8')
-    except OSError as error:
-        raise InvalidInputError(f'{file}: cannot read scene file ({error.strerror})') from None
-    except UnicodeDecodeError as error:
-        raise InvalidInputError(f'{file}: not a text file, so not a scene file ({error.reason} '
-                                f'at byte {error.start})') from None
-    try:
-        data = yaml.load(text, Loader=_YAML_LOADER)  # noqa: S506 - a safe loader
-    except yaml.YAMLError as error:
-        raise InvalidInputError(f'{file}: not valid YAML ({error})') from None
+    data = parse_text_file(
+        file, 'scene file', lambda text: yaml.load(text, Loader=_YAML_LOADER),  # noqa: S506
+        yaml.YAMLError, 'not valid YAML',
+        not_text='not a text file, so not a scene file ({reason} at byte {start})')
     return parse_scene(data, name=file.stem, base=base, folder=file.resolve().parent,
                        overrides=overrides, terrain_file=terrain_file)
 

@@ -310,6 +310,23 @@ def _precedes(f_a, h_a, node_a, f_b, h_b, node_b):
     return node_a < node_b
 
 
+@njit(inline='always')
+def _move_entry(heap_node, heap_rec, heap_key, node_int, source, target):
+    """Move the heap entry at slot ``source`` to slot ``target`` and record its new slot.
+
+    Inlined into the sift loops by numba (``inline='always'``), so sharing it costs no call.
+    """
+    moved = heap_node[source]
+    heap_node[target] = moved
+    rec_moved = np.int64(moved)
+    if heap_rec is not None:
+        rec_moved = np.int64(heap_rec[source])
+        heap_rec[target] = rec_moved
+    heap_key[2 * target] = heap_key[2 * source]
+    heap_key[2 * target + 1] = heap_key[2 * source + 1]
+    node_int[4 * rec_moved + _HEAP_SLOT] = target
+
+
 @njit
 def _sift_up(heap_node, heap_rec, heap_key, node_int, pos, node, rec, f, h):
     """Place ``node`` (record number ``rec``) with key (f, h) at heap slot ``pos`` or above it.
@@ -323,14 +340,7 @@ def _sift_up(heap_node, heap_rec, heap_key, node_int, pos, node, rec, f, h):
         above = heap_node[up]
         if not _precedes(f, h, node, heap_key[2 * up], heap_key[2 * up + 1], above):
             break
-        heap_node[pos] = above
-        rec_above = np.int64(above)
-        if heap_rec is not None:
-            rec_above = np.int64(heap_rec[up])
-            heap_rec[pos] = rec_above
-        heap_key[2 * pos] = heap_key[2 * up]
-        heap_key[2 * pos + 1] = heap_key[2 * up + 1]
-        node_int[4 * rec_above + _HEAP_SLOT] = pos
+        _move_entry(heap_node, heap_rec, heap_key, node_int, up, pos)
         pos = up
     heap_node[pos] = node
     if heap_rec is not None:
@@ -359,15 +369,7 @@ def _pop_fill(heap_node, heap_rec, heap_key, node_int, size, node, rec, f, h):
                                       heap_node[right], heap_key[2 * child],
                                       heap_key[2 * child + 1], heap_node[child]):
             child = right
-        below = heap_node[child]
-        heap_node[pos] = below
-        rec_below = np.int64(below)
-        if heap_rec is not None:
-            rec_below = np.int64(heap_rec[child])
-            heap_rec[pos] = rec_below
-        heap_key[2 * pos] = heap_key[2 * child]
-        heap_key[2 * pos + 1] = heap_key[2 * child + 1]
-        node_int[4 * rec_below + _HEAP_SLOT] = pos
+        _move_entry(heap_node, heap_rec, heap_key, node_int, child, pos)
         pos = child
     _sift_up(heap_node, heap_rec, heap_key, node_int, pos, node, rec, f, h)
 

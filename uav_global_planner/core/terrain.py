@@ -402,6 +402,15 @@ def _wall_sq(perp, t, length, z, ha, hb):  # pragma: no cover - compiled
     return perp * perp + dt * dt
 
 
+@njit(error_model='numpy', inline='always')
+def _nearer(best_sq, candidate):  # pragma: no cover - compiled
+    """``candidate`` when it is a squared distance (>= 0; -1 stands for none) below
+    ``best_sq``, else ``best_sq``."""
+    if 0.0 <= candidate < best_sq:
+        return candidate
+    return best_sq
+
+
 @njit(error_model='numpy')
 def _cell_sq(hs, x0, y0, dx, dy, i, j, x, y, z, best_sq):  # pragma: no cover - compiled
     """Smallest squared distance from p to the two top triangles of cell (i, j) and to its
@@ -417,50 +426,29 @@ def _cell_sq(hs, x0, y0, dx, dy, i, j, x, y, z, best_sq):  # pragma: no cover - 
     h01 = hs[j + 1, i]
     h11 = hs[j + 1, i + 1]
     if i == 0 and x < xa:
-        w = _wall_sq(xa - x, y - ya, dy, z, h00, h01)
-        if 0.0 <= w < best_sq:
-            best_sq = w
+        best_sq = _nearer(best_sq, _wall_sq(xa - x, y - ya, dy, z, h00, h01))
     if i == nx - 2 and x > xb:
-        w = _wall_sq(x - xb, y - ya, dy, z, h10, h11)
-        if 0.0 <= w < best_sq:
-            best_sq = w
+        best_sq = _nearer(best_sq, _wall_sq(x - xb, y - ya, dy, z, h10, h11))
     if j == 0 and y < ya:
-        w = _wall_sq(ya - y, x - xa, dx, z, h00, h10)
-        if 0.0 <= w < best_sq:
-            best_sq = w
+        best_sq = _nearer(best_sq, _wall_sq(ya - y, x - xa, dx, z, h00, h10))
     if j == ny - 2 and y > yb:
-        w = _wall_sq(y - yb, x - xa, dx, z, h01, h11)
-        if 0.0 <= w < best_sq:
-            best_sq = w
+        best_sq = _nearer(best_sq, _wall_sq(y - yb, x - xa, dx, z, h01, h11))
     idx = 1.0 / dx
     idy = 1.0 / dy
     lower = _face_sq(x, y, z, xa, ya, h00, (h10 - h00) * idx, (h11 - h10) * idy, idx, idy,
                      True)
     upper = _face_sq(x, y, z, xa, ya, h00, (h11 - h01) * idx, (h01 - h00) * idy, idx, idy,
                      False)
-    if 0.0 <= lower < best_sq:
-        best_sq = lower
-    if 0.0 <= upper < best_sq:
-        best_sq = upper
+    best_sq = _nearer(_nearer(best_sq, lower), upper)
     # A foot outside its triangle: the triangle's nearest point is on one of its edges.
-    if lower < 0.0 or upper < 0.0:
-        d = _segment_sq(x, y, z, xa, ya, h00, xb, yb, h11)  # the shared diagonal
-        if d < best_sq:
-            best_sq = d
+    if lower < 0.0 or upper < 0.0:  # the shared diagonal
+        best_sq = min(best_sq, _segment_sq(x, y, z, xa, ya, h00, xb, yb, h11))
     if lower < 0.0:
-        d = _segment_sq(x, y, z, xa, ya, h00, xb, ya, h10)
-        if d < best_sq:
-            best_sq = d
-        d = _segment_sq(x, y, z, xb, ya, h10, xb, yb, h11)
-        if d < best_sq:
-            best_sq = d
+        best_sq = min(best_sq, _segment_sq(x, y, z, xa, ya, h00, xb, ya, h10))
+        best_sq = min(best_sq, _segment_sq(x, y, z, xb, ya, h10, xb, yb, h11))
     if upper < 0.0:
-        d = _segment_sq(x, y, z, xa, ya, h00, xa, yb, h01)
-        if d < best_sq:
-            best_sq = d
-        d = _segment_sq(x, y, z, xa, yb, h01, xb, yb, h11)
-        if d < best_sq:
-            best_sq = d
+        best_sq = min(best_sq, _segment_sq(x, y, z, xa, ya, h00, xa, yb, h01))
+        best_sq = min(best_sq, _segment_sq(x, y, z, xa, yb, h01, xb, yb, h11))
     return best_sq
 
 

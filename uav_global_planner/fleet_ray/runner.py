@@ -22,9 +22,9 @@ import time
 from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple, Union
 
 from uav_global_planner.core.errors import InvalidInputError
-from uav_global_planner.core.fleet import (check_missions, fleet_order, FleetResult,
-                                           FleetSettings, Mission, MissionBatch, MissionError,
-                                           MissionOutcome, ReservationBook)
+from uav_global_planner.core.fleet import (FleetResult, FleetSettings, Mission, MissionBatch,
+                                           MissionError, MissionOutcome, ReservationBook)
+from uav_global_planner.core.fleet.missions import batch_to_plan
 from uav_global_planner.core.scene import Scene
 from uav_global_planner.fleet_ray.airspace import make_airspace, ShardLayout
 from uav_global_planner.fleet_ray.planner_actor import make_planners, Speculation
@@ -167,17 +167,7 @@ def _batch(scene: Scene, missions: Union[MissionBatch, Sequence[Mission]],
            ) -> Tuple[List[Mission], Tuple[MissionError, ...], FleetSettings]:
     """The missions to plan in the fleet order, the refused ones and the settings, as
     run_fleet finds them."""
-    errors: Tuple[MissionError, ...] = ()
-    if isinstance(missions, MissionBatch):
-        errors = missions.errors
-        settings = missions.settings if settings is None else settings
-        candidates: Sequence[Mission] = missions.missions
-    else:
-        candidates = missions
-    settings = FleetSettings() if settings is None else settings
-    valid, refused = check_missions(candidates, bounds=(scene.config.bounds_min,
-                                                        scene.config.bounds_max))
-    return fleet_order(valid), errors + refused, settings
+    return batch_to_plan(missions, settings, (scene.config.bounds_min, scene.config.bounds_max))
 
 
 class _Schedule:

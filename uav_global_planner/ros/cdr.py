@@ -20,8 +20,8 @@ from typing import List, Optional, Sequence, Tuple, Union
 import numpy as np
 
 from uav_global_planner.core.result import PlanResult
-from uav_global_planner.ros.conversions.plans import (pose_stamps_ns, require_trajectory,
-                                                      trajectory_points,
+from uav_global_planner.ros.conversions.plans import (path_samples, pose_stamps_ns,
+                                                      require_trajectory, trajectory_points,
                                                       TRAJECTORY_SAMPLE_PERIOD)
 from uav_global_planner.ros.conversions.poses import pose_array
 from uav_global_planner.ros.conversions.stamps import seconds_to_ns
@@ -159,15 +159,15 @@ def serialized_path(points: np.ndarray, frame_id: str, stamp_ns: int,
 def serialized_plan_path(result: PlanResult, frame_id: str, stamp_ns: int,
                          goal_orientation: Optional[Sequence[float]] = None) -> bytes:
     """CDR bytes of :func:`conversions.plan_to_path`."""
-    trajectory = require_trajectory(result)
-    return serialized_path(trajectory.positions, frame_id, stamp_ns, trajectory.times,
-                           goal_orientation)
+    points, times = path_samples(result, True)
+    return serialized_path(points, frame_id, stamp_ns, times, goal_orientation)
 
 
 def serialized_unsmoothed_path(result: PlanResult, frame_id: str, stamp_ns: int,
                                goal_orientation: Optional[Sequence[float]] = None) -> bytes:
     """CDR bytes of :func:`conversions.plan_to_unsmoothed_path`."""
-    return serialized_path(result.path, frame_id, stamp_ns, None, goal_orientation)
+    points, times = path_samples(result, False)
+    return serialized_path(points, frame_id, stamp_ns, times, goal_orientation)
 
 
 def serialized_trajectory(result: PlanResult, frame_id: str, stamp_ns: int,

@@ -38,7 +38,6 @@ puts the setpoint thread in SCHED_FIFO, which keeps it on time on a busy compute
 import argparse
 import math
 import os
-import signal
 import sys
 import threading
 import time
@@ -48,12 +47,9 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from nav_msgs.msg import Odometry, Path
 import numpy as np
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
-import rclpy
-from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message
-from rclpy.utilities import ok, remove_ros_args, try_shutdown
+from rclpy.utilities import ok, remove_ros_args
 from trajectory_msgs.msg import MultiDOFJointTrajectory
 
 from uav_global_planner.core import frames
@@ -63,6 +59,7 @@ from uav_global_planner.core.follower import (Command, Follower, FollowerSetting
                                               VehicleState, WAITING, WITHDRAWN)
 from uav_global_planner.ros import conversions as conv
 from uav_global_planner.ros.geofence_source import airspace_from_values, describe
+from uav_global_planner.ros.node_main import EXIT_BAD_SETTINGS, run_node
 from uav_global_planner.ros.qos import DIAGNOSTICS_QOS, keep_last, LATCHED_QOS
 from uav_global_planner.ros.trajectory_reader import read_path_header, read_trajectory
 
@@ -72,9 +69,6 @@ NODE_NAME = 'setpoint_follower'
 NODE_MODULE = 'uav_global_planner.ros.follower_node'
 #: Logged once the follower streams (the tools and tests wait for it).
 READY_TEXT = 'setpoint follower ready'
-#: Exit code for invalid start-up parameters or arguments.
-EXIT_BAD_SETTINGS = 2
-
 #: Odometry to the planner: reliable (it connects to best-effort and reliable subscriptions).
 ODOM_QOS = keep_last(5)
 #: Period of the planner-presence check and of the periodic diagnostics [s].
@@ -481,29 +475,7 @@ def main(args: Optional[List[str]] = None) -> int:
             return EXIT_BAD_SETTINGS
     # The setpoint thread must get the interpreter within a millisecond of its tick.
     sys.setswitchinterval(0.0005)
-    rclpy.init(args=argv)
-    follower: Optional[SetpointFollower] = None
-    code = 0
-    try:
-        follower = SetpointFollower(own.mavlink)
-        executor = SingleThreadedExecutor()
-        executor.add_node(follower.node)
-        follower.start()
-        executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except (InvalidInputError, ParameterException) as error:
-        print(f'setpoint_follower: invalid parameters: {error}', file=sys.stderr)
-        code = EXIT_BAD_SETTINGS
-    except RuntimeError:
-        if ok():
-            raise
-    finally:
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
-        if follower is not None:
-            follower.close()
-        try_shutdown()
-    return code
+    return run_node('setpoint_follower', lambda: SetpointFollower(own.mavlink), argv)
 
 
 if __name__ == '__main__':

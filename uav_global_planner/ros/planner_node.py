@@ -63,7 +63,6 @@ that guards each and the methods one calls on another are declared in their base
 subscriptions, timers, threads) and runs it (:func:`main`).
 """
 
-import signal
 import sys
 import threading
 from typing import Any, List, Optional
@@ -72,9 +71,6 @@ from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Odometry, Path
 import numpy as np
-import rclpy
-from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from sensor_msgs.msg import PointCloud2
 from trajectory_msgs.msg import MultiDOFJointTrajectory
@@ -97,6 +93,8 @@ from uav_global_planner.ros.nav2_interfaces import PlannerInterfaces
 from uav_global_planner.ros.node_in_force import PlanInForce
 from uav_global_planner.ros.node_inputs import CommandInputs
 from uav_global_planner.ros.node_intake import MapIntake
+from uav_global_planner.ros.node_main import (  # noqa: F401 - importable from the node
+    EXIT_BAD_SETTINGS, run_node)
 from uav_global_planner.ros.node_reconfigure import ParameterHandling
 from uav_global_planner.ros.node_state import Inbox, SourceState
 from uav_global_planner.ros.node_status import StatusPublishing
@@ -120,9 +118,6 @@ _MAP_STATUS_PERIOD_S = 1.0
 
 #: Period of the check for another node of the same fully qualified name [s].
 _DUPLICATE_CHECK_PERIOD_S = 2.0
-
-#: Exit code for settings that are invalid at start-up.
-EXIT_BAD_SETTINGS = 2
 
 
 class PlannerNode(ParameterHandling, CommandInputs, MapIntake, PlanInForce, PlanningWorker,
@@ -406,34 +401,7 @@ def main(args: Optional[List[str]] = None) -> int:
         0 after a clean shutdown, :data:`EXIT_BAD_SETTINGS` for invalid start-up parameters
         (a ``map_file`` that cannot be used is reported by the running node instead).
     """
-    rclpy.init(args=args)
-    planner: Optional[PlannerNode] = None
-    code = 0
-    try:
-        planner = PlannerNode()
-        executor = SingleThreadedExecutor()
-        executor.add_node(planner.node)
-        planner.start()
-        executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except (InvalidInputError, ParameterException) as error:
-        # Invalid --params-file or -p values (out of range, wrong type, failing validation):
-        # say which, and do not start.
-        print(f'planner_node: invalid parameters: {error}', file=sys.stderr)
-        code = EXIT_BAD_SETTINGS
-    except RuntimeError:
-        # A message taken while SIGINT/SIGTERM shuts the context down can fail to convert;
-        # that is the shutdown, not an error. Anything else still shows its traceback.
-        if rclpy.ok():
-            raise
-    finally:
-        # A second Ctrl-C during clean-up must not print a traceback.
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
-        if planner is not None:
-            planner.close()
-        rclpy.try_shutdown()
-    return code
+    return run_node('planner_node', PlannerNode, args)
 
 
 if __name__ == '__main__':

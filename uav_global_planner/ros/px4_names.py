@@ -65,22 +65,21 @@ VEHICLE_COMMAND = '/fmu/in/vehicle_command'
 #: this, Hz (PX4 user guide, "Offboard Mode": "at least 2 Hz").
 OFFBOARD_HEARTBEAT_MIN_RATE = 2.0
 
+
+def _best_effort(depth: int, durability: DurabilityPolicy) -> QoSProfile:
+    """Best effort, keep last ``depth``: the reliability of every PX4 bridge topic."""
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth,
+                      reliability=ReliabilityPolicy.BEST_EFFORT, durability=durability)
+
+
 #: Subscriptions to PX4's outputs (``/fmu/out``): best effort, volatile, keep last 5.
-PX4_OUT_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=5,
-                         reliability=ReliabilityPolicy.BEST_EFFORT,
-                         durability=DurabilityPolicy.VOLATILE)
+PX4_OUT_QOS = _best_effort(5, DurabilityPolicy.VOLATILE)
 #: Publishers to PX4's inputs (``/fmu/in``): best effort, volatile, keep last 10.
-PX4_IN_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
-                        reliability=ReliabilityPolicy.BEST_EFFORT,
-                        durability=DurabilityPolicy.VOLATILE)
+PX4_IN_QOS = _best_effort(10, DurabilityPolicy.VOLATILE)
 #: What PX4's bridge offers on ``/fmu/out``: best effort, transient local, keep last 1.
-PX4_BRIDGE_WRITER_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
-                                   reliability=ReliabilityPolicy.BEST_EFFORT,
-                                   durability=DurabilityPolicy.TRANSIENT_LOCAL)
+PX4_BRIDGE_WRITER_QOS = _best_effort(1, DurabilityPolicy.TRANSIENT_LOCAL)
 #: What PX4's bridge requests on ``/fmu/in``: best effort, volatile.
-PX4_BRIDGE_READER_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
-                                   reliability=ReliabilityPolicy.BEST_EFFORT,
-                                   durability=DurabilityPolicy.VOLATILE)
+PX4_BRIDGE_READER_QOS = _best_effort(10, DurabilityPolicy.VOLATILE)
 
 
 def px4_topic(name: str, namespace: str = '') -> str:

@@ -435,3 +435,35 @@ def load_missions(source: Union[str, Path, Mapping[str, Any]], *,
 def fleet_order(missions: Sequence[Mission]) -> List[Mission]:
     """Missions in the order they are resolved: priority (larger first), departure, name."""
     return sorted(missions, key=Mission.order_key)
+
+
+def batch_to_plan(missions: Union[MissionBatch, Sequence[Mission]],
+                  settings: Optional[FleetSettings], bounds: Optional[Bounds] = None
+                  ) -> Tuple[List[Mission], Tuple[MissionError, ...], FleetSettings]:
+    """The missions to plan in :func:`fleet_order`, the refused ones and the settings in force.
+
+    Parameters
+    ----------
+    missions : MissionBatch or sequence of Mission
+        A loaded batch (its errors and settings come along) or plain missions.
+    settings : FleetSettings, optional
+        Overrides the batch's settings; the defaults for a plain sequence.
+    bounds : (array_like, array_like), optional
+        Map bounds min and max [m] (ENU); missions outside them are refused.
+
+    Returns
+    -------
+    (list of Mission, tuple of MissionError, FleetSettings)
+        The valid missions in resolution order, the batch's errors then those found here,
+        and the settings.
+    """
+    errors: Tuple[MissionError, ...] = ()
+    if isinstance(missions, MissionBatch):
+        errors = missions.errors
+        settings = missions.settings if settings is None else settings
+        candidates: Sequence[Mission] = missions.missions
+    else:
+        candidates = missions
+    settings = FleetSettings() if settings is None else settings
+    valid, refused = check_missions(candidates, bounds=bounds)
+    return fleet_order(valid), errors + refused, settings

@@ -10,8 +10,8 @@ from dataclasses import dataclass
 from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple, Union
 
 from uav_global_planner.core.fleet.book import ReservationBook
-from uav_global_planner.core.fleet.missions import (check_missions, fleet_order, FleetSettings,
-                                                    Mission, MissionBatch, MissionError)
+from uav_global_planner.core.fleet.missions import (batch_to_plan, FleetSettings, Mission,
+                                                    MissionBatch, MissionError)
 from uav_global_planner.core.fleet.resolve import (plan_mission, PlanFunction, Resolution,
                                                    ResolutionStep, resolve)
 from uav_global_planner.core.fleet.separation import Conflict, Flight
@@ -161,26 +161,16 @@ def run_fleet(planner: Any, missions: Union[MissionBatch, Sequence[Mission]],
     -------
     FleetResult
     """
-    errors: Tuple[MissionError, ...] = ()
-    if isinstance(missions, MissionBatch):
-        errors = missions.errors
-        settings = missions.settings if settings is None else settings
-        candidates: Sequence[Mission] = missions.missions
-    else:
-        candidates = missions
-    settings = FleetSettings() if settings is None else settings
     bounds = None
     if planner is not None:
         bounds = (planner.config.bounds_min, planner.config.bounds_max)
-    valid, refused = check_missions(candidates, bounds=bounds)
-    errors = errors + refused
+    ordered, errors, settings = batch_to_plan(missions, settings, bounds)
     plans = dict(base_plans or {})
     if plan_layer is None and planner is not None:
         def plan_layer(mission: Mission, layer_m: float) -> PlanResult:
             return plan_mission(planner, mission, layer_m)
     book = ReservationBook(settings)
     outcomes: List[MissionOutcome] = []
-    ordered = fleet_order(valid)
     for mission in ordered:
         base = plans.get(mission.name)
         if base is None and planner is not None:

@@ -6,7 +6,7 @@ plus the pose's time from the start (:func:`pose_stamps_ns`). :mod:`uav_global_p
 writes the same messages as bytes from the same arrays.
 """
 
-from typing import Dict, Optional, Sequence
+from typing import Dict, Optional, Sequence, Tuple
 
 from builtin_interfaces.msg import Duration
 from geometry_msgs.msg import Quaternion, Transform, Twist
@@ -60,15 +60,42 @@ def points_to_path(points: np.ndarray, frame_id: str, stamp_ns: int,
 def plan_to_path(result: PlanResult, frame_id: str, stamp_ns: int,
                  goal_orientation: Optional[Sequence[float]] = None) -> Path:
     """Smoothed, time-stamped path of a successful plan (pose stamps = plan time + times)."""
-    trajectory = require_trajectory(result)
-    return points_to_path(trajectory.positions, frame_id, stamp_ns, trajectory.times,
-                          goal_orientation)
+    points, times = path_samples(result, True)
+    return points_to_path(points, frame_id, stamp_ns, times, goal_orientation)
 
 
 def plan_to_unsmoothed_path(result: PlanResult, frame_id: str, stamp_ns: int,
                             goal_orientation: Optional[Sequence[float]] = None) -> Path:
     """Grid-node path of a plan (all poses stamped with the plan time)."""
-    return points_to_path(result.path, frame_id, stamp_ns, None, goal_orientation)
+    points, times = path_samples(result, False)
+    return points_to_path(points, frame_id, stamp_ns, times, goal_orientation)
+
+
+def path_samples(result: PlanResult,
+                 smoothed: bool) -> Tuple[np.ndarray, Optional[np.ndarray]]:
+    """Positions and times of a plan's ``Path`` message.
+
+    Parameters
+    ----------
+    result : PlanResult
+    smoothed : bool
+        The smoothed trajectory's samples (its positions [m] and times from start [s]), else
+        the grid-node path with no times (every pose stamped with the plan time).
+
+    Returns
+    -------
+    (numpy.ndarray, numpy.ndarray or None)
+        Positions, shape (M, 3) [m, map frame], and times, shape (M,) [s], or None.
+
+    Raises
+    ------
+    ValueError
+        For the smoothed path of a failed plan, which has none.
+    """
+    if not smoothed:
+        return result.path, None
+    trajectory = require_trajectory(result)
+    return trajectory.positions, trajectory.times
 
 
 #: Default time step of the ``trajectory`` message's points [s].
