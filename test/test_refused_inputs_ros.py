@@ -26,8 +26,9 @@ against one node process in the good state of :func:`good_state`:
 
 After every case the node must still plan the next valid request, in the state it had before.
 
-One file, though long: the catalogue is one table that ``docs/refused_inputs.md`` is generated
-from, and its rows run against one shared node process.
+One file, though long: the catalogue is one table that the docs build renders on
+``docs/refused_inputs.md`` (``docs/gen_tables.py``), and its rows run against one shared node
+process.
 """
 
 from dataclasses import dataclass, field
@@ -855,25 +856,3 @@ def test_catalogue_is_complete() -> None:
               'param_resolution_string', 'param_resolution_zero',
               'param_bounds_min_above_max', 'param_bounds_voxel_cap'}
     assert needed <= set(CASES), sorted(needed - set(CASES))
-
-
-def catalogue_markdown() -> str:
-    """The catalogue as a Markdown table (case, channel, input, what the user sees)."""
-    lines = ['| case | channel | input | what the user sees |', '|---|---|---|---|']
-    for case in CATALOGUE:
-        if case.outcome == ACCEPTED:
-            seen = f'accepted: {case.reason}'
-        elif case.outcome == PARAMETER_REFUSED:
-            seen = f'SetParametersResult refused: "{case.reason}"'
-        elif case.outcome == MAP_FILE_REFUSED:
-            seen = (f'ERROR map_status, map_file_refused: "{case.reason}"; goals refused, '
-                    f'code {case.code}')
-        else:
-            kind = 'WARN input_rejected' if case.outcome == REFUSED else 'ERROR plan'
-            seen = f'{kind}, code {case.code}: "{case.reason}"'
-        lines.append(f'| `{case.case_id}` | {case.channel} | {case.given} | {seen} |')
-    return '\n'.join(lines)
-
-
-if __name__ == '__main__':
-    print(catalogue_markdown())

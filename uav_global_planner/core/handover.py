@@ -150,7 +150,7 @@ class Handover:
                            accel=float(self.acceleration @ tangent))
 
     def error(self, trajectory: Trajectory) -> Tuple[float, float]:
-        """How far the reference at time 0 is from this state: |dv| [m/s], |da| [m/s^2]."""
+        """How far the reference at time 0 is from this state: ``|dv|`` [m/s], ``|da|`` [m/s^2]."""
         if not len(trajectory.times):
             return 0.0, 0.0
         state = trajectory.state_at(0.0)

@@ -45,9 +45,9 @@ class MotionLimits:
     Attributes
     ----------
     speed_horizontal, speed_vertical : float
-        Norm of (vx, vy) and |vz| [m/s].
+        Norm of (vx, vy) and ``|vz|`` [m/s].
     accel_horizontal, accel_vertical : float
-        Norm of (ax, ay) and |az| [m/s^2], as configured (before tilt and thrust).
+        Norm of (ax, ay) and ``|az|`` [m/s^2], as configured (before tilt and thrust).
     jerk : float
         Norm of the jerk vector [m/s^3].
     tilt_deg : float
@@ -55,7 +55,7 @@ class MotionLimits:
     thrust_to_weight : float
         Collective thrust over weight [-], > 1.
     yaw_rate : float
-        |d yaw / dt| [rad/s].
+        ``|d yaw / dt|`` [rad/s].
 
     Raises
     ------
@@ -99,7 +99,7 @@ class AccelerationBox:
     Attributes
     ----------
     horizontal, vertical : float
-        Limits on the norm of (ax, ay) and on |az| [m/s^2].
+        Limits on the norm of (ax, ay) and on ``|az|`` [m/s^2].
     horizontal_by, vertical_by : str
         ``'acceleration'``, ``'tilt'`` or ``'thrust'``.
     """

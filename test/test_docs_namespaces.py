@@ -1,6 +1,6 @@
-"""The README's namespaced parameter example, run as written.
+"""The documentation's namespaced parameter example, run as written.
 
-The block under "One planner per vehicle: namespaces" is read from README.md: its
+The block under "One planner per vehicle: namespaces" is read from docs/node.md: its
 ``planner_node`` line is started as a process (the venv's console script, its arguments split as
 a shell would), and each ``ros2 param set NODE NAME VALUE`` line is sent to NODE's parameter
 service with VALUE read as ``ros2 param set`` reads it (YAML, rclpy's
@@ -21,13 +21,14 @@ from ros_harness import (NodeProcess, READY_TEXT, REPO_ROOT, ros_environment, Ro
 
 pytestmark = pytest.mark.ros
 
-HEADING = '### One planner per vehicle: namespaces'
+PAGE = REPO_ROOT / 'docs' / 'node.md'
+HEADING = '## One planner per vehicle: namespaces'
 
 
-def readme_block() -> List[str]:
-    """The command lines of the first bash block after :data:`HEADING`."""
-    text = (REPO_ROOT / 'README.md').read_text(encoding='utf-8')
-    assert HEADING in text, f'README.md has no section {HEADING!r}'
+def documented_block() -> List[str]:
+    """The command lines of the first bash block after :data:`HEADING` in :data:`PAGE`."""
+    text = PAGE.read_text(encoding='utf-8')
+    assert HEADING in text, f'docs/node.md has no section {HEADING!r}'
     section = text.split(HEADING, 1)[1]
     match = re.search(r'```bash\n(.*?)```', section, re.S)
     assert match, 'no bash block in the section'
@@ -50,11 +51,11 @@ def split_block(lines: List[str]) -> Tuple[List[str], List[Tuple[str, str, str]]
 
 
 def test_the_namespaced_parameter_example_runs_as_written(monkeypatch) -> None:
-    command, sets = split_block(readme_block())
+    command, sets = split_block(documented_block())
     executable = shutil.which(command[0])
     assert executable, f'{command[0]} is not on PATH (the venv installs it)'
     domain_id = unique_domain_id()
-    # Run from the repository root, as the README's commands are.
+    # Run from the repository root, as the documented commands are.
     monkeypatch.chdir(REPO_ROOT)
     node = NodeProcess([executable, *command[1:]], ros_environment(domain_id))
     client = None
