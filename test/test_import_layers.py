@@ -1,6 +1,7 @@
 """Dependencies point one way: core <- cli, core <- ros, and the tools on top of all three.
 
-Every module of ``uav_global_planner`` and ``uav_global_planner_tools`` is parsed (imports inside
+Every module of ``uav_global_planner`` and ``uav_global_planner_tools``, and every script of
+``benchmarks/`` and ``tools/``, is parsed (imports inside
 functions included, relative imports resolved), and so is every string that names one of their
 modules outside a docstring (``python -m ...``, ``importlib.import_module(...)``), since running
 a module is a dependency too. The layers and what each may not use:
@@ -8,12 +9,14 @@ a module is a dependency too. The layers and what each may not use:
 =========  ===================================  ==============================================
 layer      modules                              must not use
 =========  ===================================  ==============================================
-core       uav_global_planner.core (and the     ros, cli, tools, fleet_ray, rclpy or any ROS
-           package's ``__init__``)              package
-ros        uav_global_planner.ros               cli, tools
-cli        uav_global_planner.cli               ros, tools, rclpy or any ROS package
-fleet_ray  uav_global_planner.fleet_ray         ros, cli, tools, rclpy or any ROS package
-tools      uav_global_planner_tools             (anything)
+core       uav_global_planner.core (and the     ros, cli, tools, fleet_ray, scripts, rclpy or
+           package's ``__init__``)              any ROS package
+ros        uav_global_planner.ros               cli, tools, scripts
+cli        uav_global_planner.cli               ros, tools, scripts, rclpy or any ROS package
+fleet_ray  uav_global_planner.fleet_ray         ros, cli, tools, scripts, rclpy or any ROS
+                                                package
+tools      uav_global_planner_tools             scripts
+scripts    benchmarks/*.py, tools/*.py          (anything)
 =========  ===================================  ==============================================
 """
 
@@ -31,11 +34,15 @@ TOOLS = 'uav_global_planner_tools'
 ROS = 'ros-packages'
 
 #: Layer -> the layers (and ROS itself) it must not use.
-FORBIDDEN = {'core': {'ros', 'cli', 'tools', 'fleet_ray', ROS},
-             'ros': {'cli', 'tools'},
-             'cli': {'ros', 'tools', ROS},
-             'fleet_ray': {'ros', 'cli', 'tools', ROS},
-             'tools': set()}
+FORBIDDEN = {'core': {'ros', 'cli', 'tools', 'fleet_ray', 'scripts', ROS},
+             'ros': {'cli', 'tools', 'scripts'},
+             'cli': {'ros', 'tools', 'scripts', ROS},
+             'fleet_ray': {'ros', 'cli', 'tools', 'scripts', ROS},
+             'tools': {'scripts'},
+             'scripts': set()}
+#: Folders of scripts (benchmarks, scene makers): they may use every layer, and no installed
+#: module may use them (they are not installed).
+SCRIPT_FOLDERS = ('benchmarks', 'tools')
 
 # ROS Python packages, when the ament index of this environment does not list them.
 _ROS_NAMES = {'rclpy', 'ament_index_python', 'rosidl_runtime_py', 'rosidl_parser', 'launch',
@@ -52,13 +59,16 @@ def _ament_packages() -> Set[str]:
 
 
 def layer_of(module: str, ros_packages: Set[str]) -> Optional[str]:
-    """Layer of a dotted module name: core, ros, cli, tools, ROS (a ROS package) or None.
+    """Layer of a dotted module name: core, ros, cli, fleet_ray, tools, scripts (benchmarks/ and
+    tools/), ROS (a ROS package) or None.
 
     ``uav_global_planner`` itself and its ``config`` data count as core.
     """
     parts = module.split('.')
     if parts[0] == TOOLS:
         return 'tools'
+    if parts[0] in SCRIPT_FOLDERS:
+        return 'scripts'
     if parts[0] == LIBRARY:
         if len(parts) == 1 or parts[1] in ('core', 'config', '__init__'):
             return 'core'
@@ -119,6 +129,8 @@ def violations(root: Path) -> List[str]:
     ros_packages = _ament_packages()
     found = []
     files = sorted((root / LIBRARY).rglob('*.py')) + sorted((root / TOOLS).rglob('*.py'))
+    for folder in SCRIPT_FOLDERS:
+        files += sorted((root / folder).glob('*.py'))
     for path in files:
         module = _module_name(root, path)
         layer = layer_of(module, ros_packages)
@@ -165,6 +177,8 @@ def test_every_layer_has_modules():
     ('cli', "CHILD = ['-m', 'uav_global_planner.ros.planner_node']\n", '(ros)'),
     ('cli', 'from uav_global_planner import ros\n', 'uses uav_global_planner.ros'),
     ('cli', 'import uav_global_planner_tools.demo\n', '(tools)'),
+    ('cli', 'from benchmarks.bench_outdoor import main\n', '(scripts)'),
+    ('ros', 'import tools.make_scenes\n', '(scripts)'),
 ])
 def test_an_upward_import_is_reported(tmp_path, layer, source, expected):
     folder = tmp_path / LIBRARY / layer
@@ -191,6 +205,11 @@ def test_allowed_directions_are_not_reported(tmp_path):
     (tmp_path / TOOLS / 'demo.py').write_text(
         'import rclpy\nfrom uav_global_planner.cli import plotting\n'
         'from uav_global_planner.ros import names\n', encoding='utf-8')
+    # A benchmark script uses every layer.
+    (tmp_path / 'benchmarks').mkdir()
+    (tmp_path / 'benchmarks' / 'bench_x.py').write_text(
+        'import rclpy\nfrom uav_global_planner.ros import names\n'
+        'from uav_global_planner_tools import demo\n', encoding='utf-8')
     assert violations(tmp_path) == []
 
 
