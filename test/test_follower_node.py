@@ -276,14 +276,19 @@ def test_bounds_hold_the_setpoints_and_bad_parameters_exit_with_a_reason():
         setpoints = record_setpoints(client)
         vehicle = Px4Vehicle(client, [0.0, 0.0, 1.0])
         setpoints.wait_for(timeout_s=20.0, what='a hold where the vehicle is')
+        # Stamped 2 s ahead: the follower takes it up at its stamp, where it starts at the
+        # hold (a plan that arrives late under load would already be more than resume_distance
+        # away, and rightly not taken up).
         Planner(client).publish(line_plan([0.0, 0.0, 1.0], [2.0, -2.0, 2.0], duration=3.0),
-                                client.now_ns())
-        wait_until(lambda: len(setpoints.messages) > 150, 20.0, '150 setpoints')
+                                client.now_ns() + 2_000_000_000)
+        corner = setpoints.wait_for(
+            lambda m: np.allclose(frames.ned_to_enu(np.asarray(m.position)), [1.0, -1.0, 2.0]),
+            timeout_s=30.0, what='the setpoint clamped into the corner of the bounds')
+        assert corner is not None
         positions = np.array([m.position for m in setpoints.messages])
         enu = frames.ned_to_enu(positions)
         assert np.all(enu >= np.array([-1.0, -1.0, 0.0]) - 1e-6)
         assert np.all(enu <= np.array([1.0, 1.0, 2.0]) + 1e-6)
-        assert np.allclose(enu[-1], [1.0, -1.0, 2.0])       # clamped into the corner
         vehicle.close()
         assert_clean_exit(node, node.stop())
     bad = NodeProcess(follower_command({'bounds.min': [0.0, 0.0, 5.0],
