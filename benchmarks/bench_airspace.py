@@ -15,7 +15,7 @@ Two tables:
   later plans on the built grid.
 * The paper scenes (``paper_medium``, ``paper_high``) planned with ``octile``, and town400 with
   ``weighted``, at climb weight 1 and 3: path length, search cost, climb, flight time and the
-  energy of the point-mass model (:mod:`uav_global_planner.core.energy`, the default vehicle:
+  energy of the point-mass model (:mod:`uav_global_planner.core.path.energy`, the default vehicle:
   1.5 kg, 180 W).
 
 Figures only: nothing here asserts a speed.
@@ -30,10 +30,10 @@ from typing import Any, Dict, List
 
 import numpy as np
 
-from uav_global_planner.core.airspace import Airspace, Cylinder, InclusionFence, Prism
-from uav_global_planner.core.energy import estimate_energy
+from uav_global_planner.core.io.scene import find_scene, load_scene, Scene
+from uav_global_planner.core.map.airspace import Airspace, Cylinder, InclusionFence, Prism
+from uav_global_planner.core.path.energy import estimate_energy
 from uav_global_planner.core.planner import Planner
-from uav_global_planner.core.scene import find_scene, load_scene, Scene
 
 # Later plans on a built grid are repeated until this much time was spent [s] (3 to 20 runs).
 REPEAT_BUDGET_S = 3.0

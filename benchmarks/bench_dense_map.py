@@ -14,7 +14,7 @@ instead). Figures, at gamma 0.3 m plus the map's margin (the cells' half diagona
 - the map read (``load_map_points``);
 - the blocked mask at each grid resolution, by the pass of the previous release (every point
   stamps its ball, or, as here, a KD-tree query of every node once the balls overlap hundreds
-  of times) and by :func:`~uav_global_planner.core.inflation.blocked_mask`, with a check that
+  of times) and by :func:`~uav_global_planner.core.map.inflation.blocked_mask`, with a check that
   both masks are equal;
 - ``uav-plan plan ... --max-planning-time 1`` on that room (a process of its own): status,
   message, the plan's own time and the command's wall time, with the default unknown-space
@@ -37,10 +37,10 @@ from typing import List, Tuple
 import numpy as np
 import octomap
 
-from uav_global_planner.core import inflation
-from uav_global_planner.core.grid import VoxelGrid
-from uav_global_planner.core.mapfiles import load_map_points
-from uav_global_planner.core.obstacles import ObstacleSet, PointSet
+from uav_global_planner.core.io.mapfiles import load_map_points
+from uav_global_planner.core.map import inflation
+from uav_global_planner.core.map.grid import VoxelGrid
+from uav_global_planner.core.map.obstacles import ObstacleSet, PointSet
 
 ROOM = np.array([7.0, 7.6, 4.4])
 CELL = 0.02

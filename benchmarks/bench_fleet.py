@@ -40,10 +40,9 @@ from typing import Any, Dict, List, Sequence, Tuple
 
 import numpy as np
 
-from uav_global_planner.core.fleet import (FleetResult, FleetSettings, Flight, Mission,
-                                           run_fleet)
+from uav_global_planner.core.fleet import FleetResult, FleetSettings, Flight, Mission, run_fleet
+from uav_global_planner.core.io.scene import find_scene, load_scene, Scene, with_ground
 from uav_global_planner.core.planner import Planner
-from uav_global_planner.core.scene import find_scene, load_scene, Scene, with_ground
 # Imported on first use (after main() has set Ray's token variables): it imports Ray.
 import uav_global_planner.fleet_ray as fleet_ray
 

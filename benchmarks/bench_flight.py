@@ -40,8 +40,8 @@ import numpy as np
 
 from uav_global_planner.cli.report import format_table
 from uav_global_planner.core.config import PlannerConfig
+from uav_global_planner.core.io.scene import find_scene, load_scene, Scene
 from uav_global_planner.core.planner import Planner
-from uav_global_planner.core.scene import find_scene, load_scene, Scene
 from uav_global_planner_tools.flight.error_model import fit_tracking_error
 from uav_global_planner_tools.flight.fly import FlightReport, fly
 from uav_global_planner_tools.flight.planning import config_for_vehicle
@@ -198,7 +198,7 @@ def main() -> None:
     parser.add_argument('--winds', nargs='+', default=list(WINDS), choices=WINDS)
     parser.add_argument('--margin-still', type=float, default=0.1,
                         help='tracking_margin of the still-air plans [m] (default 0.1: the '
-                        'still-air fit of core/tracking.py)')
+                        'still-air fit of core/path/tracking.py)')
     parser.add_argument('--margin-wind', type=float, default=0.6,
                         help='tracking_margin of the plans flown in turbulence [m] (default '
                         '0.6: the path deviation of the Hummingbird in 4 m/s RMS)')

@@ -20,8 +20,8 @@ from typing import List, Sequence, Tuple
 import numpy as np
 
 from uav_global_planner.core.config import validate_config
+from uav_global_planner.core.io.scene import find_scene, load_scene
 from uav_global_planner.core.planner import Planner
-from uav_global_planner.core.scene import find_scene, load_scene
 
 #: The handover tolerances [m], [m/s], [m/s^2].
 TOLERANCES = (0.01, 0.05, 0.2)

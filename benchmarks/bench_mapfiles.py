@@ -6,7 +6,7 @@ Run inside the project's environment::
 
 Each file is written by its format's own library into a temporary folder (binary encodings, as
 surveys and SLAM tools write them), then read with
-:func:`uav_global_planner.core.mapfiles.load_map_points`; the figure is the median of the
+:func:`uav_global_planner.core.io.mapfiles.load_map_points`; the figure is the median of the
 repeats, the first read (imports, page cache) is shown apart. The target is 1 s for 1 M points of
 PCD, PLY, LAS and .npy. Voxel downsampling and the OctoMap file (whose library reads and walks
 its tree leaf by leaf) are reported as well.
@@ -25,7 +25,7 @@ import octomap
 from plyfile import PlyData, PlyElement
 from pypcd4 import PointCloud
 
-from uav_global_planner.core.mapfiles import load_map_points, voxel_downsample
+from uav_global_planner.core.io.mapfiles import load_map_points, voxel_downsample
 
 TARGET_S = 1.0
 

@@ -33,8 +33,8 @@ from typing import Any, Dict, List, Optional, Sequence
 import numpy as np
 from rclpy.action import ActionClient
 
+from uav_global_planner.core.io.scene import find_scene, load_scene, Scene
 from uav_global_planner.core.result import polyline_length
-from uav_global_planner.core.scene import find_scene, load_scene, Scene
 from uav_global_planner.ros import conversions as conv
 from uav_global_planner.ros.nav2_client import ExecutorCalls, round_trip
 from uav_global_planner_tools.domains import choose_domain_id

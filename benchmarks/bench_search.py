@@ -16,12 +16,12 @@ import time
 import numpy as np
 import yaml
 
-from uav_global_planner.core.grid import VoxelGrid
-from uav_global_planner.core.inflation import blocked_mask
 from uav_global_planner.core.jit import JIT_ENABLED
-from uav_global_planner.core.obstacles import Box, ObstacleSet, PointSet, Sphere
-from uav_global_planner.core.search import ALGORITHM_CODES, search, SearchWorkspace
-from uav_global_planner.core.sparse_grid import SparseMask
+from uav_global_planner.core.map.grid import VoxelGrid
+from uav_global_planner.core.map.inflation import blocked_mask
+from uav_global_planner.core.map.obstacles import Box, ObstacleSet, PointSet, Sphere
+from uav_global_planner.core.map.sparse_grid import SparseMask
+from uav_global_planner.core.search.grid_search import ALGORITHM_CODES, search, SearchWorkspace
 
 SCENES = Path(__file__).resolve().parents[1] / 'config' / 'scenes'
 # Stop repeating one algorithm once this much search time [s] was spent on it.

@@ -36,10 +36,10 @@ from typing import Any, Dict, List
 
 import numpy as np
 
-from uav_global_planner.core.ground import ground_surface, height_above_ground
-from uav_global_planner.core.obstacles import Box, ObstacleSet
+from uav_global_planner.core.io.scene import parse_scene
+from uav_global_planner.core.map.ground import ground_surface, height_above_ground
+from uav_global_planner.core.map.obstacles import Box, ObstacleSet
 from uav_global_planner.core.planner import Planner
-from uav_global_planner.core.scene import parse_scene
 
 #: Dense samples of a curve for the AGL figures.
 DENSE_SAMPLES = 10_000
@@ -104,8 +104,8 @@ def _curve_figures(result: Any, surface: Any) -> Dict[str, float]:
 
 def dem2km(folder: Path) -> List[Dict[str, Any]]:
     """The 2 km DEM case (see the module notes), one row per algorithm."""
-    from uav_global_planner.core.dem import load_dem
-    from uav_global_planner.core.geodesy import GeodeticOrigin
+    from uav_global_planner.core.io.geodesy import GeodeticOrigin
+    from uav_global_planner.core.map.dem import load_dem
     write_dem(folder / 'dem.tif')
     min_agl, max_agl, gamma, delta = 30.0, 120.0, 2.0, 2.0
     # The bounds span the band over this DEM: from its lowest point + min_agl - gamma to its
@@ -168,7 +168,7 @@ def survey() -> Dict[str, Any]:
     start, goal = scene.start, scene.goal
     lifted = 'no start admission'
     try:
-        from uav_global_planner.core.start_admission import admit, GOAL, START
+        from uav_global_planner.core.search.start_admission import admit, GOAL, START
     except ImportError:
         start = start + np.array([0.0, 0.0, gamma + scene.config.resolution])
     else:

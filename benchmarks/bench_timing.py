@@ -9,7 +9,7 @@ it). Two tables:
 
 1. **Flight time.** On the certified smoothed curve of each shipped scene (``paper_medium``,
    ``paper_high``, ``town400``; the curve ``Planner.plan`` times), the flight time of our
-   reference (:func:`~uav_global_planner.core.timing.time_parameterize`, rest to rest, no
+   reference (:func:`~uav_global_planner.core.path.timing.time_parameterize`, rest to rest, no
    tracking speed cap) against the time-optimal reference on the same curve under the same
    limits, computed by copp-py, at the default limits and at the '8 m/s' limits. Target:
    ours / copp <= 1.15.
@@ -68,13 +68,13 @@ from scipy.spatial import HalfspaceIntersection
 
 from uav_global_planner.core import planner as planner_module
 from uav_global_planner.core.config import PlannerConfig
-from uav_global_planner.core.curve import PathCurve
-from uav_global_planner.core.obstacles import ObstacleSet, Sphere
+from uav_global_planner.core.io.scene import find_scene, load_scene
+from uav_global_planner.core.map.obstacles import ObstacleSet, Sphere
+from uav_global_planner.core.path.curve import PathCurve
+from uav_global_planner.core.path.smoothing import smooth_path, SmoothedPath
+from uav_global_planner.core.path.timing import time_parameterize
 from uav_global_planner.core.planner import Planner
 from uav_global_planner.core.result import Trajectory
-from uav_global_planner.core.scene import find_scene, load_scene
-from uav_global_planner.core.smoothing import smooth_path, SmoothedPath
-from uav_global_planner.core.timing import time_parameterize
 
 SCENES = ('paper_medium', 'paper_high', 'town400')
 PIECE_COUNTS = (50, 500)
@@ -247,7 +247,8 @@ def random_curve(pieces: int, seed: int = 0, resolution: float = 0.5,
     A random polyline (legs of 3 to 8 m, turns up to 75 degrees, climbs up to 20 degrees, ENU
     map frame) gets one knot per metre of leg (``knot_spacing`` 1 m, as the planner's default
     at delta = 0.5 m); spheres of radius 1 to 3 m are scattered around it, at least 2 m off it,
-    and :func:`~uav_global_planner.core.smoothing.smooth_path` certifies the curve against them.
+    and :func:`~uav_global_planner.core.path.smoothing.smooth_path` certifies the curve against
+    them.
 
     Parameters
     ----------
@@ -326,7 +327,7 @@ def timing_call(limits: Limits,
     """
     parameters = inspect.signature(time_parameterize).parameters
     if 'limits' in parameters:
-        motion_limits = importlib.import_module('uav_global_planner.core.motion_limits')
+        motion_limits = importlib.import_module('uav_global_planner.core.path.motion_limits')
         motion = replace(motion_limits.MotionLimits.from_config(config),
                          speed_horizontal=limits.speed_horizontal,
                          speed_vertical=limits.speed_vertical,

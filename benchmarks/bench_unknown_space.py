@@ -31,7 +31,7 @@ synthetic
 
     The bounds are the scan's extent; the map is loaded as the command line loads ``--map``
     (the occupied leaf centres, gamma grown by the file's margin, and the unknown space of
-    :mod:`uav_global_planner.core.unknown_space`). Unless ``--start`` and ``--goal`` are given,
+    :mod:`uav_global_planner.core.map.unknown_space`). Unless ``--start`` and ``--goal`` are given,
     the ends are two observed free points far apart, gamma (plus the half diagonal of a grid
     cell) from the occupied cells, and as much from anything not observed free where the scan
     has such room (:func:`observed_ends`); the room they have is printed. A scan whose
@@ -53,10 +53,10 @@ from typing import Any, Dict, List, Optional, Sequence, Tuple
 import numpy as np
 
 from uav_global_planner.core.config import PlannerConfig, validate_config
-from uav_global_planner.core.mapfiles import load_map_points
-from uav_global_planner.core.obstacles import ObstacleSet
+from uav_global_planner.core.io.mapfiles import load_map_points
+from uav_global_planner.core.map.obstacles import ObstacleSet
+from uav_global_planner.core.map.unknown_space import read_octree, unknown_from_map_files
 from uav_global_planner.core.planner import Planner
-from uav_global_planner.core.unknown_space import read_octree, unknown_from_map_files
 
 ALGORITHM = 'octile'
 #: The policies compared: (unknown_space, unknown_cost [per metre]).

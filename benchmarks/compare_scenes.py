@@ -12,7 +12,7 @@ import time
 
 from uav_global_planner.cli.compare import compare_algorithms
 from uav_global_planner.cli.report import format_table
-from uav_global_planner.core.scene import load_scene, shipped_scenes
+from uav_global_planner.core.io.scene import load_scene, shipped_scenes
 
 
 def main() -> None:

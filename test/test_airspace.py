@@ -26,20 +26,20 @@ import pymap3d
 import pytest
 from scipy import ndimage
 
-from uav_global_planner.core.airspace import (Airspace, BoxZone, check_endpoint,
-                                              checked_polygon, Cylinder, InclusionCircle,
-                                              InclusionFence, load_geofence, load_qgc_plan,
-                                              parse_geofence, Prism, zone_containing)
 from uav_global_planner.core.config import PlannerConfig
 from uav_global_planner.core.errors import (GoalOccupiedError, GoalOutsideMapError,
                                             InvalidInputError, StartOccupiedError)
-from uav_global_planner.core.geodesy import GeodeticOrigin
-from uav_global_planner.core.grid import VoxelGrid
-from uav_global_planner.core.inflation import blocked_mask
-from uav_global_planner.core.obstacles import Box, ObstacleSet, Sphere
+from uav_global_planner.core.io.geodesy import GeodeticOrigin
+from uav_global_planner.core.io.scene import find_scene, load_scene, parse_scene
+from uav_global_planner.core.map.airspace import (Airspace, BoxZone, check_endpoint,
+                                                  checked_polygon, Cylinder, InclusionCircle,
+                                                  InclusionFence, load_geofence, load_qgc_plan,
+                                                  parse_geofence, Prism, zone_containing)
+from uav_global_planner.core.map.grid import VoxelGrid
+from uav_global_planner.core.map.inflation import blocked_mask
+from uav_global_planner.core.map.obstacles import Box, ObstacleSet, Sphere
+from uav_global_planner.core.map.spatial_index import ShapeIndex
 from uav_global_planner.core.planner import Planner
-from uav_global_planner.core.scene import find_scene, load_scene, parse_scene
-from uav_global_planner.core.spatial_index import ShapeIndex
 from uav_global_planner.core.status import PlanStatus
 
 REPO = Path(__file__).resolve().parents[1]
@@ -264,11 +264,11 @@ def test_inflation_blocks_exactly_the_nodes_within_gamma_of_a_zone(gamma):
 
 _FALLBACK_SCRIPT = """
 import json, numpy as np
-from uav_global_planner.core.airspace import Cylinder, InclusionFence, Prism
-from uav_global_planner.core.grid import VoxelGrid
-from uav_global_planner.core.inflation import blocked_mask
+from uav_global_planner.core.map.airspace import Cylinder, InclusionFence, Prism
+from uav_global_planner.core.map.grid import VoxelGrid
+from uav_global_planner.core.map.inflation import blocked_mask
 from uav_global_planner.core.jit import JIT_ENABLED
-from uav_global_planner.core.obstacles import ObstacleSet
+from uav_global_planner.core.map.obstacles import ObstacleSet
 zones = [Prism([[0, 0], [3, 0], [1, 1], [0, 3]], 0.5, 2.0), Cylinder([-2, 1], 0.7, 1.0, 3.0),
          InclusionFence([[-4, -4], [4, -4], [4, 4], [0, 1], [-4, 4]], 0.25, 3.5)]
 grid = VoxelGrid.from_bounds([-5, -5, 0], [5, 5, 4], 0.5)

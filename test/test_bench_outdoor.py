@@ -6,7 +6,7 @@ import sys
 
 import pytest
 
-from uav_global_planner.core.search import ALGORITHM_CODES
+from uav_global_planner.core.search.grid_search import ALGORITHM_CODES
 
 
 def _positive(value) -> bool:

@@ -9,8 +9,8 @@ from types import ModuleType
 import numpy as np
 import pytest
 
-from uav_global_planner.core.obstacles import ObstacleSet
-from uav_global_planner.core.smoothing import smooth_path
+from uav_global_planner.core.map.obstacles import ObstacleSet
+from uav_global_planner.core.path.smoothing import smooth_path
 
 pytest.importorskip('copp_py')
 

@@ -9,7 +9,7 @@ from uav_global_planner.core.budget import PlanBudget, PlanStage
 from uav_global_planner.core.config import PlannerConfig
 from uav_global_planner.core.errors import PlanningCancelledError, PlanningTimeoutError
 from uav_global_planner.core.jit import compile_seconds, JIT_ENABLED, njit
-from uav_global_planner.core.obstacles import Box, ObstacleSet, PointSet, Sphere
+from uav_global_planner.core.map.obstacles import Box, ObstacleSet, PointSet, Sphere
 from uav_global_planner.core.planner import Planner
 from uav_global_planner.core.status import PlanStatus
 

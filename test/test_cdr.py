@@ -18,9 +18,9 @@ import pytest
 from rclpy.serialization import deserialize_message
 from trajectory_msgs.msg import MultiDOFJointTrajectory
 
+from uav_global_planner.core.io.scene import find_scene, load_scene
 from uav_global_planner.core.planner import Planner
 from uav_global_planner.core.result import Trajectory
-from uav_global_planner.core.scene import find_scene, load_scene
 from uav_global_planner.ros import cdr
 from uav_global_planner.ros import conversions as conv
 

@@ -10,13 +10,13 @@ import math
 import numpy as np
 import pytest
 
-from uav_global_planner.core.clearance import (certify_pieces, certify_polyline,
-                                               certify_segments, line_pieces)
 from uav_global_planner.core.config import PlannerConfig
 from uav_global_planner.core.errors import InvalidInputError
-from uav_global_planner.core.obstacles import Box, ObstacleSet, PointSet, Sphere
+from uav_global_planner.core.map.obstacles import Box, ObstacleSet, PointSet, Sphere
+from uav_global_planner.core.map.spatial_index import ShapeIndex
+from uav_global_planner.core.path.clearance import (certify_pieces, certify_polyline,
+                                                    certify_segments, line_pieces)
 from uav_global_planner.core.planner import Planner
-from uav_global_planner.core.spatial_index import ShapeIndex
 
 
 def random_obstacles(seed: int, shapes: int = 60, points: int = 300) -> ObstacleSet:

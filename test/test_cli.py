@@ -8,7 +8,7 @@ import subprocess
 import numpy as np
 import pytest
 
-from uav_global_planner.core.obstacles import ObstacleSet, Sphere
+from uav_global_planner.core.map.obstacles import ObstacleSet, Sphere
 
 REPO = Path(__file__).resolve().parents[1]
 PLAN_KEYS = {'status', 'message', 'algorithm', 'start', 'goal', 'path', 'path_length_m',

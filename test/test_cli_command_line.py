@@ -19,8 +19,8 @@ import yaml
 from uav_global_planner.cli.main import main as uav_plan_main
 from uav_global_planner.cli.memory import data_bytes, estimate, grid_nodes
 from uav_global_planner.core.config import PlannerConfig
-from uav_global_planner.core.obstacles import ObstacleSet
-from uav_global_planner.core.scene import shipped_scenes
+from uav_global_planner.core.io.scene import shipped_scenes
+from uav_global_planner.core.map.obstacles import ObstacleSet
 from uav_global_planner.core.settings import planner_settings
 
 COMMANDS = ('plan', 'compare', 'plot', 'export')

@@ -7,7 +7,7 @@ import sys
 def test_core_import_does_not_import_rclpy():
     code = (
         'import sys\n'
-        'import uav_global_planner.core.planner, uav_global_planner.core.scene\n'
+        'import uav_global_planner.core.planner, uav_global_planner.core.io.scene\n'
         'import uav_global_planner.cli.main\n'
         "leaked = [m for m in sys.modules if m.split('.')[0] in "
         "('rclpy', 'geometry_msgs', 'nav_msgs', 'visualization_msgs', 'sensor_msgs')]\n"
@@ -21,7 +21,7 @@ def test_core_plans_without_rclpy(repo_root):
     code = (
         'import sys\n'
         "sys.modules['rclpy'] = None  # any import of rclpy now fails\n"
-        'from uav_global_planner.core.scene import load_scene, find_scene\n'
+        'from uav_global_planner.core.io.scene import load_scene, find_scene\n'
         'from uav_global_planner.core.planner import Planner\n'
         "scene = load_scene(find_scene('paper_medium'))\n"
         'result = Planner(scene.config, scene.obstacles).plan(scene.start, scene.goal)\n'
@@ -37,12 +37,13 @@ def test_the_public_api_plans_and_loads_nothing_before_it_is_used():
     # the core imported alone does not load the planner (lazy names, PEP 562).
     code = (
         'import sys\n'
-        'import uav_global_planner.core.grid\n'
+        'import uav_global_planner.core.map.grid\n'
         "assert 'uav_global_planner.core.planner' not in sys.modules\n"
         'import uav_global_planner.core as core\n'
         "assert 'uav_global_planner.core.planner' not in sys.modules\n"
         'from uav_global_planner.core import Planner, find_scene, load_scene\n'
-        'from uav_global_planner.core import planner, errors, obstacles\n'
+        'from uav_global_planner.core import planner, errors\n'
+        'from uav_global_planner.core.map import obstacles\n'
         'assert Planner is planner.Planner\n'
         'assert core.InvalidInputError is errors.InvalidInputError\n'
         'assert core.Sphere is obstacles.Sphere\n'

@@ -15,11 +15,11 @@ import numpy as np
 import pytest
 
 from uav_global_planner.core.config import PlannerConfig, validate_config
-from uav_global_planner.core.dem import load_dem, parse_terrain, TerrainSource
 from uav_global_planner.core.errors import InvalidInputError
-from uav_global_planner.core.geodesy import enu_to_geodetic, GeodeticOrigin
-from uav_global_planner.core.ground import ground_obstacles, ground_surface
-from uav_global_planner.core.scene import parse_scene
+from uav_global_planner.core.io.geodesy import enu_to_geodetic, GeodeticOrigin
+from uav_global_planner.core.io.scene import parse_scene
+from uav_global_planner.core.map.dem import load_dem, parse_terrain, TerrainSource
+from uav_global_planner.core.map.ground import ground_obstacles, ground_surface
 
 rasterio = pytest.importorskip('rasterio')
 warp = pytest.importorskip('rasterio.warp')
@@ -343,7 +343,7 @@ def hills_plan(tmp_path_factory):
 
 
 def test_plan_across_the_hills_keeps_clearance_and_the_agl_band(hills_plan):
-    from uav_global_planner.core.ground import height_above_ground
+    from uav_global_planner.core.map.ground import height_above_ground
     scene, result = hills_plan
     terrain = scene.terrain
     s = np.linspace(0.0, result.curve.length_m, DENSE_SAMPLES)
@@ -361,11 +361,11 @@ def test_plan_across_the_hills_keeps_clearance_and_the_agl_band(hills_plan):
 
 def test_mission_over_the_hills_is_relative_to_home_and_keeps_the_band(hills_plan, tmp_path):
     from pymavlink import mavwp
-    from uav_global_planner.core.geodesy import geodetic_to_enu
-    from uav_global_planner.core.ground import height_above_ground
+    from uav_global_planner.core.io.geodesy import geodetic_to_enu
+    from uav_global_planner.core.map.ground import height_above_ground
     from uav_global_planner.core.mission import (MAV_CMD_NAV_LAND, MAV_CMD_NAV_WAYPOINT,
-                                                 MAV_FRAME_GLOBAL_RELATIVE_ALT,
-                                                 mission_from_plan, MissionSettings, wpl_text)
+                                                 MAV_FRAME_GLOBAL_RELATIVE_ALT, mission_from_plan,
+                                                 MissionSettings, wpl_text)
     scene, result = hills_plan
     terrain = scene.terrain
     mission = mission_from_plan(result, scene.obstacles, scene.config, ORIGIN,
@@ -429,11 +429,11 @@ def mavsdk_import(path, autopilot):
 def test_mission_over_the_hills_opens_in_mavsdk_relative_to_home(hills_plan, tmp_path,
                                                                  firmware):
     pytest.importorskip('mavsdk')
-    from uav_global_planner.core.geodesy import geodetic_to_enu
-    from uav_global_planner.core.ground import height_above_ground
+    from uav_global_planner.core.io.geodesy import geodetic_to_enu
+    from uav_global_planner.core.map.ground import height_above_ground
     from uav_global_planner.core.mission import (MAV_AUTOPILOT, MAV_CMD_NAV_WAYPOINT,
-                                                 MAV_FRAME_GLOBAL_RELATIVE_ALT,
-                                                 mission_from_plan, MissionSettings, plan_text)
+                                                 MAV_FRAME_GLOBAL_RELATIVE_ALT, mission_from_plan,
+                                                 MissionSettings, plan_text)
     scene, result = hills_plan
     mission = mission_from_plan(result, scene.obstacles, scene.config, ORIGIN,
                                 MissionSettings(firmware=firmware, end='land'))
@@ -486,7 +486,7 @@ def test_command_line_ground_terrain_and_band(tmp_path, capsys):
     output = json.loads(capsys.readouterr().out)
     assert code == 0, output['message']
     path = np.array(output['path'])
-    from uav_global_planner.core.dem import load_dem
+    from uav_global_planner.core.map.dem import load_dem
     hill = load_dem(tmp_path / 'hill.asc', [0.0, 0.0], [40.0, 40.0])
     agl = path[:, 2] - hill.height_at(path[:, :2])
     assert agl.min() >= 3.0 - 1e-9 and agl.max() <= 9.0 + 1e-9

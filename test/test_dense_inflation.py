@@ -11,13 +11,14 @@ import numpy as np
 import pytest
 
 from uav_global_planner.core import budget as budget_module
-from uav_global_planner.core import dense_inflation, inflation
 from uav_global_planner.core.budget import PlanBudget, PlanStage
 from uav_global_planner.core.config import PlannerConfig
 from uav_global_planner.core.errors import PlanningTimeoutError
-from uav_global_planner.core.grid import VoxelGrid
-from uav_global_planner.core.inflation import blocked_mask, reinflate_sparse, reinflate_tiles
-from uav_global_planner.core.obstacles import ObstacleSet, PointSet
+from uav_global_planner.core.map import dense_inflation
+from uav_global_planner.core.map import inflation
+from uav_global_planner.core.map.grid import VoxelGrid
+from uav_global_planner.core.map.inflation import blocked_mask, reinflate_sparse, reinflate_tiles
+from uav_global_planner.core.map.obstacles import ObstacleSet, PointSet
 from uav_global_planner.core.planner import Planner
 from uav_global_planner.core.status import PlanStatus
 

@@ -15,18 +15,19 @@ import numpy as np
 import pytest
 from scipy.sparse.csgraph import shortest_path
 
-from uav_global_planner.core import search as search_module
 from uav_global_planner.core.config import ALGORITHMS, PlannerConfig, validate_config
-from uav_global_planner.core.energy import (estimate_energy, GRAVITY, parse_vehicle,
-                                            VehicleModel)
 from uav_global_planner.core.errors import InvalidInputError, NoValidPathError
-from uav_global_planner.core.grid import VoxelGrid
-from uav_global_planner.core.inflation import blocked_mask
-from uav_global_planner.core.obstacles import Box, ObstacleSet, Sphere
+from uav_global_planner.core.io.scene import find_scene, load_scene
+from uav_global_planner.core.map.grid import VoxelGrid
+from uav_global_planner.core.map.inflation import blocked_mask
+from uav_global_planner.core.map.obstacles import Box, ObstacleSet, Sphere
+from uav_global_planner.core.path.energy import (estimate_energy, GRAVITY, parse_vehicle,
+                                                 VehicleModel)
 from uav_global_planner.core.planner import Planner
 from uav_global_planner.core.result import Trajectory
-from uav_global_planner.core.scene import find_scene, load_scene
-from uav_global_planner.core.search import ALGORITHM_CODES, DEFAULT_WEIGHT, SearchWorkspace
+from uav_global_planner.core.search import grid_search as search_module
+from uav_global_planner.core.search.grid_search import (ALGORITHM_CODES, DEFAULT_WEIGHT,
+                                                        SearchWorkspace)
 
 RTOL = 1e-9
 # Weight pairs: the paper's length, costly climbs, cheap descents, free vertical moves, and

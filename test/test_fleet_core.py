@@ -22,7 +22,7 @@ from uav_global_planner.core.fleet import (common_window, distance_bounds, Envel
                                            first_conflict, fleet_order, FleetSettings, Flight,
                                            load_missions, Mission, plan_mission,
                                            ReservationBook, resolve, run_fleet, StaleBookError)
-from uav_global_planner.core.obstacles import Box, ObstacleSet
+from uav_global_planner.core.map.obstacles import Box, ObstacleSet
 from uav_global_planner.core.planner import Planner
 
 FUZZ = settings(derandomize=True, database=None, deadline=None, print_blob=True,

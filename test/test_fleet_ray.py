@@ -21,8 +21,8 @@ import yaml
 ray = pytest.importorskip('ray')
 
 from uav_global_planner.core.fleet import (FleetSettings, Mission, run_fleet)  # noqa: E402
+from uav_global_planner.core.io.scene import load_scene, with_ground  # noqa: E402
 from uav_global_planner.core.planner import Planner  # noqa: E402
-from uav_global_planner.core.scene import load_scene, with_ground  # noqa: E402
 from uav_global_planner.fleet_ray import (make_airspace, plan_fleet_ray, ray_session,  # noqa: E402
                                           ShardLayout)
 

@@ -10,10 +10,10 @@ import math
 import numpy as np
 import pytest
 
-from uav_global_planner.core.obstacles import ObstacleSet, Sphere
+from uav_global_planner.core.io.scene import find_scene, load_scene
+from uav_global_planner.core.map.obstacles import ObstacleSet, Sphere
 from uav_global_planner.core.planner import Planner
 from uav_global_planner.core.result import Trajectory
-from uav_global_planner.core.scene import find_scene, load_scene
 from uav_global_planner_tools.flight.fly import fly
 from uav_global_planner_tools.flight.planning import config_for_vehicle
 from uav_global_planner_tools.flight.vehicles import GRAVITY, hummingbird, px4_sih_quadx

@@ -22,7 +22,7 @@ Every property is checked independently of the planner's own bookkeeping:
   chord allowed the depth by which it may cut inside the curve, ``ds^2 / 8 * curvature``); it
   starts and ends at the requested start and goal;
 - the trajectory is finite, its times increase strictly from 0 and it keeps the speed and
-  acceleration limits (:func:`~uav_global_planner.core.timing.check_limits`);
+  acceleration limits (:func:`~uav_global_planner.core.path.timing.check_limits`);
 - where the conservative grid (gamma + delta * sqrt(3) / 2) connects the endpoints, the plan
   succeeds: the planner's fallback guarantees it;
 - a planner reused across requests, settings and obstacles answers exactly like a fresh one.
@@ -51,15 +51,15 @@ from scipy import ndimage
 from uav_global_planner.core import planner as planner_module
 from uav_global_planner.core.config import ALGORITHMS, PlannerConfig, SMOOTHING_MODES
 from uav_global_planner.core.errors import InvalidInputError
-from uav_global_planner.core.grid import VoxelGrid
-from uav_global_planner.core.inflation import blocked_mask
-from uav_global_planner.core.motion_limits import MotionLimits
-from uav_global_planner.core.obstacles import Box, ObstacleSet, PointSet, Sphere
+from uav_global_planner.core.map.grid import VoxelGrid
+from uav_global_planner.core.map.inflation import blocked_mask
+from uav_global_planner.core.map.obstacles import Box, ObstacleSet, PointSet, Sphere
+from uav_global_planner.core.path.motion_limits import MotionLimits
+from uav_global_planner.core.path.smoothing import smooth_path, SmoothedPath
+from uav_global_planner.core.path.timing import check_limits
 from uav_global_planner.core.planner import Planner
 from uav_global_planner.core.result import PlanResult
-from uav_global_planner.core.smoothing import smooth_path, SmoothedPath
 from uav_global_planner.core.status import PlanStatus
-from uav_global_planner.core.timing import check_limits
 
 FUZZ = settings(derandomize=True, database=None, deadline=None, print_blob=True,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])

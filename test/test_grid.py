@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from uav_global_planner.core.errors import InvalidInputError
-from uav_global_planner.core.grid import VoxelGrid
+from uav_global_planner.core.map.grid import VoxelGrid
 
 
 def test_paper_grid_has_41_41_31_nodes():

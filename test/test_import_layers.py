@@ -194,8 +194,8 @@ def test_an_upward_import_is_reported(tmp_path, layer, source, expected):
 
 def test_allowed_directions_are_not_reported(tmp_path):
     for layer, source in (('core', 'import numpy\n'),
-                          ('ros', 'import rclpy\nfrom uav_global_planner.core import scene\n'),
-                          ('cli', 'from uav_global_planner.core.scene import find_scene\n')):
+                          ('ros', 'import rclpy\nfrom uav_global_planner.core.io import scene\n'),
+                          ('cli', 'from uav_global_planner.core.io.scene import find_scene\n')):
         folder = tmp_path / LIBRARY / layer
         folder.mkdir(parents=True)
         (folder / '__init__.py').write_text('', encoding='utf-8')

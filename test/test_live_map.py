@@ -1,4 +1,4 @@
-"""Live maps (core/live_map.py): the point index, exact cloud comparison, tile-by-tile inflation.
+"""Live maps (core/map/live_map.py): the point index, exact cloud comparison, tile-by-tile inflation.
 
 Every incremental answer is checked against the plain computation it replaces: distances
 against scipy's KD-tree, masks against a full :func:`blocked_mask` of the same obstacles.
@@ -16,12 +16,12 @@ from scipy.spatial import cKDTree
 
 from uav_global_planner.core.config import PlannerConfig
 from uav_global_planner.core.errors import InvalidInputError
-from uav_global_planner.core.grid import VoxelGrid
-from uav_global_planner.core.inflation import blocked_mask, reinflate_tiles
-from uav_global_planner.core.live_map import (CellGeometry, changed_cells, LiveMapBuilder,
-                                              LiveObstacles, MaskBuffers, PointCells,
-                                              UNCHANGED)
-from uav_global_planner.core.obstacles import Box, ObstacleSet, PointSet, Sphere
+from uav_global_planner.core.map.grid import VoxelGrid
+from uav_global_planner.core.map.inflation import blocked_mask, reinflate_tiles
+from uav_global_planner.core.map.live_map import (CellGeometry, changed_cells, LiveMapBuilder,
+                                                  LiveObstacles, MaskBuffers, PointCells,
+                                                  UNCHANGED)
+from uav_global_planner.core.map.obstacles import Box, ObstacleSet, PointSet, Sphere
 from uav_global_planner.core.planner import certify_plan, fallback_margin, Planner
 
 REPO = Path(__file__).resolve().parents[1]
@@ -306,9 +306,9 @@ def test_without_numba_the_same_maps_come_out(tmp_path) -> None:
     script.write_text(
         'import numpy as np\n'
         'from uav_global_planner.core.jit import JIT_ENABLED\n'
-        'from uav_global_planner.core.live_map import LiveMapBuilder\n'
+        'from uav_global_planner.core.map.live_map import LiveMapBuilder\n'
         'from uav_global_planner.core.config import PlannerConfig\n'
-        'from uav_global_planner.core.obstacles import Sphere\n'
+        'from uav_global_planner.core.map.obstacles import Sphere\n'
         'assert not JIT_ENABLED\n'
         'rng = np.random.default_rng(1)\n'
         'config = PlannerConfig(bounds_min=(-3.0, -3.0, 0.0), bounds_max=(3.0, 3.0, 3.0),\n'

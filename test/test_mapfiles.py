@@ -22,13 +22,14 @@ from scipy.spatial import cKDTree
 import yaml
 
 from uav_global_planner.cli.main import main as uav_plan_main
-from uav_global_planner.core import scene as scene_module
 from uav_global_planner.core.errors import InvalidInputError, MissingDependencyError
-from uav_global_planner.core.mapfiles import (downsample_margin, load_map_files, load_map_points,
-                                              load_prior_map, voxel_downsample, with_prior_map)
-from uav_global_planner.core.obstacles import ObstacleSet, Sphere
+from uav_global_planner.core.io import scene as scene_module
+from uav_global_planner.core.io.mapfiles import (downsample_margin, load_map_files,
+                                                 load_map_points, load_prior_map, voxel_downsample,
+                                                 with_prior_map)
+from uav_global_planner.core.io.scene import load_scene, parse_scene
+from uav_global_planner.core.map.obstacles import ObstacleSet, Sphere
 from uav_global_planner.core.planner import densify, Planner
-from uav_global_planner.core.scene import load_scene, parse_scene
 
 GAMMA = 0.3
 OCTOMAP_RESOLUTION = 0.1
@@ -231,7 +232,7 @@ def test_laz_without_a_backend_names_lazrs(tmp_path):
     # laspy looks for its LAZ backends when it is imported: a fresh process without them.
     code = ('import sys\n'
             "sys.modules['lazrs'] = sys.modules['laszip'] = None\n"
-            'from uav_global_planner.core.mapfiles import load_map_points\n'
+            'from uav_global_planner.core.io.mapfiles import load_map_points\n'
             f'load_map_points({str(file)!r})\n')
     run = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
                          timeout=120)

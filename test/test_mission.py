@@ -15,8 +15,10 @@ import pytest
 
 from uav_global_planner.core.config import PlannerConfig
 from uav_global_planner.core.errors import InvalidInputError
-from uav_global_planner.core.geodesy import (enu_to_geodetic, geodetic_to_enu, GeodeticOrigin,
-                                             MissingDependencyError, parse_origin)
+from uav_global_planner.core.io.geodesy import (enu_to_geodetic, geodetic_to_enu, GeodeticOrigin,
+                                                MissingDependencyError, parse_origin)
+from uav_global_planner.core.io.scene import find_scene, load_scene, parse_scene
+from uav_global_planner.core.map.obstacles import Box, ObstacleSet, PointSet, Sphere
 from uav_global_planner.core.mission import (build_mission, certify_triangle, FenceCircle,
                                              FencePolygon, format_from_path,
                                              MAV_CMD_DO_CHANGE_SPEED, MAV_CMD_NAV_LAND,
@@ -24,9 +26,7 @@ from uav_global_planner.core.mission import (build_mission, certify_triangle, Fe
                                              MAV_CMD_NAV_RETURN_TO_LAUNCH, MAV_CMD_NAV_TAKEOFF,
                                              MAV_CMD_NAV_WAYPOINT, MissionSettings, plan_document,
                                              UncertifiableMissionError, wpl_text)
-from uav_global_planner.core.obstacles import Box, ObstacleSet, PointSet, Sphere
 from uav_global_planner.core.planner import Planner
-from uav_global_planner.core.scene import find_scene, load_scene, parse_scene
 
 ORIGIN = GeodeticOrigin(47.397742, 8.545594, 488.0)
 POSITION_COMMANDS = {MAV_CMD_NAV_TAKEOFF, MAV_CMD_NAV_WAYPOINT, MAV_CMD_NAV_LOITER_UNLIM,
@@ -159,7 +159,7 @@ def test_turn_region_certificate_sees_an_obstacle_inside_the_triangle():
     inside = ObstacleSet([PointSet([[1.2, 1.2, 1.0]])])
     margin = 0.5
     # Every side keeps the margin...
-    from uav_global_planner.core.clearance import certify_segments
+    from uav_global_planner.core.path.clearance import certify_segments
     sides = certify_segments(inside, np.stack([a, b, c]), np.stack([b, c, a]), margin, 0.1)
     assert sides.clear.all()
     # ...but the filled triangle does not.
@@ -428,7 +428,7 @@ def test_unknown_extension_is_refused():
 
 
 def test_scene_airspace_becomes_the_2d_geofence():
-    from uav_global_planner.core.airspace import Airspace, BoxZone, Cylinder, InclusionFence
+    from uav_global_planner.core.map.airspace import Airspace, BoxZone, Cylinder, InclusionFence
     fence = InclusionFence([[-19.0, -19.0], [19.0, -19.0], [19.0, 19.0], [-19.0, 19.0]])
     tower = Cylinder([10.0, -10.0], 2.0)                        # every altitude, off the route
     shed = BoxZone([-1.0, -1.0, 0.0], [1.0, 1.0, 3.0])          # low: the route flies over it

@@ -9,7 +9,7 @@ import pymap3d
 from pymavlink import mavwp
 import pytest
 
-from uav_global_planner.core.scene import find_scene, load_scene
+from uav_global_planner.core.io.scene import find_scene, load_scene
 
 ORIGIN = (47.397742, 8.545594, 488.0)
 ORIGIN_TEXT = ','.join(str(v) for v in ORIGIN)

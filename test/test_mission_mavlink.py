@@ -22,11 +22,11 @@ from pymavlink import mavwp
 from pymavlink.dialects.v20 import common as mavlink2
 import pytest
 
-from uav_global_planner.core.geodesy import GeodeticOrigin
+from uav_global_planner.core.io.geodesy import GeodeticOrigin
+from uav_global_planner.core.io.scene import find_scene, load_scene
 from uav_global_planner.core.mission import (build_mission, FenceCircle, FencePolygon,
                                              MissionSettings, plan_text, wpl_text)
 from uav_global_planner.core.planner import Planner
-from uav_global_planner.core.scene import find_scene, load_scene
 
 ORIGIN = GeodeticOrigin(-35.363261, 149.165230, 584.0)     # southern and eastern hemisphere
 MAV_AUTOPILOT_PX4 = 12

@@ -14,8 +14,8 @@ from ros_harness import (assert_clean_exit, marker, marker_array, MONITOR_QOS, N
                          planner_command, PlannerClient, READY_TEXT, ros_environment, RosClient,
                          start_scene_publisher, STARTUP_TIMEOUT_S, unique_domain_id, wait_future,
                          wait_until)
-from uav_global_planner.core.obstacles import ObstacleSet, Sphere
-from uav_global_planner.core.scene import find_scene, load_scene
+from uav_global_planner.core.io.scene import find_scene, load_scene
+from uav_global_planner.core.map.obstacles import ObstacleSet, Sphere
 from uav_global_planner.ros import conversions as conv
 
 pytestmark = pytest.mark.ros

@@ -25,8 +25,8 @@ from ros_harness import (assert_clean_exit, LATCHED_QOS, marker, marker_array, m
                          NodeProcess, planner_command, PlannerClient, pose_msg, READY_TEXT,
                          ros_environment, RosClient, RUN_NAMESPACE, start_planner,
                          STARTUP_TIMEOUT_S, unique_domain_id, wait_future)
-from uav_global_planner.core.obstacles import Box, ObstacleSet
-from uav_global_planner.core.scene import find_scene, load_scene
+from uav_global_planner.core.io.scene import find_scene, load_scene
+from uav_global_planner.core.map.obstacles import Box, ObstacleSet
 from uav_global_planner.ros import conversions as conv
 from uav_global_planner.ros.nav2_client import ExecutorCalls, get_result, send_goal
 from uav_global_planner.ros.nav2_interfaces import PREEMPTED_TEXT

@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from uav_global_planner.core.config import ALGORITHMS
-from uav_global_planner.core.grid import VoxelGrid
-from uav_global_planner.core.obstacles import Box, ObstacleSet, Sphere
+from uav_global_planner.core.map.grid import VoxelGrid
+from uav_global_planner.core.map.obstacles import Box, ObstacleSet, Sphere
 from uav_global_planner.core.status import PlanStatus
 from uav_global_planner.ros.nav2_interfaces import (InvalidPlannerIdError, nearest_free_node,
                                                     resolve_planner_id, result_code)

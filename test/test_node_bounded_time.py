@@ -19,7 +19,7 @@ from visualization_msgs.msg import Marker
 from ros_harness import (marker, marker_array, min_clearance, PlannerClient,
                          plans_after_withdrawal, pose_msg, READY_TEXT, RosClient, RUN_NAMESPACE,
                          start_planner, STARTUP_TIMEOUT_S, unique_domain_id)
-from uav_global_planner.core.obstacles import Box, ObstacleSet
+from uav_global_planner.core.map.obstacles import Box, ObstacleSet
 from uav_global_planner.ros import conversions as conv
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]

@@ -12,7 +12,7 @@ from visualization_msgs.msg import Marker
 
 from ros_harness import marker, marker_array, odom_msg, pose_msg
 from uav_global_planner.core.config import PlannerConfig
-from uav_global_planner.core.obstacles import Box, ObstacleSet, Sphere
+from uav_global_planner.core.map.obstacles import Box, ObstacleSet, Sphere
 from uav_global_planner.core.planner import Planner
 from uav_global_planner.core.status import NAV2_TF_ERROR, NAV2_UNKNOWN, PlanStatus
 from uav_global_planner.ros import conversions as conv

@@ -25,10 +25,9 @@ from visualization_msgs.msg import Marker
 
 from ros_harness import (assert_clean_exit, marker, marker_array, min_clearance, NodeProcess,
                          PlannerClient, pose_msg, READY_TEXT, RosClient, RUN_NAMESPACE,
-                         start_planner, start_scene_publisher, STARTUP_TIMEOUT_S,
-                         unique_domain_id)
-from uav_global_planner.core.obstacles import Box, ObstacleSet, Sphere
-from uav_global_planner.core.scene import find_scene, load_scene
+                         start_planner, start_scene_publisher, STARTUP_TIMEOUT_S, unique_domain_id)
+from uav_global_planner.core.io.scene import find_scene, load_scene
+from uav_global_planner.core.map.obstacles import Box, ObstacleSet, Sphere
 from uav_global_planner.ros import conversions as conv
 from uav_global_planner.ros.planner_node import PlannerNode
 

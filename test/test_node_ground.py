@@ -19,7 +19,7 @@ import pytest
 
 from ros_harness import (assert_start_file_refused, planner_session, PlannerClient, READY_TEXT,
                          RUN_NAMESPACE)
-from uav_global_planner.core.dem import load_dem
+from uav_global_planner.core.map.dem import load_dem
 from uav_global_planner.ros import conversions as conv
 
 pytestmark = pytest.mark.ros

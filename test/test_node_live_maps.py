@@ -15,11 +15,11 @@ import pytest
 from trajectory_msgs.msg import MultiDOFJointTrajectory
 from visualization_msgs.msg import Marker, MarkerArray
 
-from ros_harness import (LATCHED_QOS, marker, marker_array, min_clearance, odom_msg,
-                         PlannerClient, plans_after_withdrawal, pose_msg, READY_TEXT, RosClient,
-                         RUN_NAMESPACE, start_planner, STARTUP_TIMEOUT_S, unique_domain_id)
-from uav_global_planner.core.obstacles import ObstacleSet, Sphere
-from uav_global_planner.core.scene import find_scene, load_scene
+from ros_harness import (LATCHED_QOS, marker, marker_array, min_clearance, odom_msg, PlannerClient,
+                         plans_after_withdrawal, pose_msg, READY_TEXT, RosClient, RUN_NAMESPACE,
+                         start_planner, STARTUP_TIMEOUT_S, unique_domain_id)
+from uav_global_planner.core.io.scene import find_scene, load_scene
+from uav_global_planner.core.map.obstacles import ObstacleSet, Sphere
 from uav_global_planner.ros import conversions as conv
 
 pytestmark = pytest.mark.ros

@@ -54,11 +54,11 @@ from rclpy.parameter_client import AsyncParameterClient
 from std_msgs.msg import Header
 from visualization_msgs.msg import Marker, MarkerArray
 
-from ros_harness import (assert_clean_exit, diagnostics_of, marker, marker_array,
-                         min_clearance, MONITOR_QOS, NODE_NAME, OBSTACLES_QOS, pose_msg,
-                         RosClient, RUN_NAMESPACE, start_planner, unique_domain_id, wait_until)
-from uav_global_planner.core.obstacles import ObstacleSet, Sphere
-from uav_global_planner.core.scene import find_scene, load_scene
+from ros_harness import (assert_clean_exit, diagnostics_of, marker, marker_array, min_clearance,
+                         MONITOR_QOS, NODE_NAME, OBSTACLES_QOS, pose_msg, RosClient, RUN_NAMESPACE,
+                         start_planner, unique_domain_id, wait_until)
+from uav_global_planner.core.io.scene import find_scene, load_scene
+from uav_global_planner.core.map.obstacles import ObstacleSet, Sphere
 from uav_global_planner.ros import conversions as conv
 from uav_global_planner.ros.qos import keep_last
 

@@ -14,7 +14,7 @@ from ros_harness import (assert_clean_exit, assert_start_file_refused, marker, m
                          min_clearance, NodeProcess, OBSTACLES_QOS, planner_command,
                          planner_session, PlannerClient, READY_TEXT, ros_environment, RosClient,
                          RUN_NAMESPACE, start_planner, STARTUP_TIMEOUT_S, unique_domain_id)
-from uav_global_planner.core.obstacles import ObstacleSet, PointSet
+from uav_global_planner.core.map.obstacles import ObstacleSet, PointSet
 from uav_global_planner.ros import conversions as conv
 
 pytestmark = pytest.mark.ros

@@ -13,11 +13,11 @@ import pytest
 from sensor_msgs.msg import PointCloud2, PointField
 from std_msgs.msg import Header
 
-from ros_harness import (CLOUD_QOS, min_clearance, PlannerClient, pose_msg, READY_TEXT,
-                         RosClient, RUN_NAMESPACE, SENSOR_QOS, start_planner, STARTUP_TIMEOUT_S,
+from ros_harness import (CLOUD_QOS, min_clearance, PlannerClient, pose_msg, READY_TEXT, RosClient,
+                         RUN_NAMESPACE, SENSOR_QOS, start_planner, STARTUP_TIMEOUT_S,
                          unique_domain_id, wait_until)
-from uav_global_planner.core.obstacles import ObstacleSet, PointSet
-from uav_global_planner.core.scene import find_scene, load_scene
+from uav_global_planner.core.io.scene import find_scene, load_scene
+from uav_global_planner.core.map.obstacles import ObstacleSet, PointSet
 from uav_global_planner.ros import conversions as conv
 from uav_global_planner.ros.qos import keep_last
 

@@ -26,11 +26,11 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from ros_harness import (assert_clean_exit, CLOUD_QOS, LATCHED_QOS, marker, marker_array,
                          min_clearance, NODE_NAME, NodeProcess, OBSTACLES_QOS, odom_msg,
-                         PlannerClient, pose_msg, READY_TEXT, Recorder, RosClient,
-                         RUN_NAMESPACE, SENSOR_QOS, start_planner, STARTUP_TIMEOUT_S,
-                         unique_domain_id, wait_until)
-from uav_global_planner.core.obstacles import Box, ObstacleSet, PointSet, Sphere
-from uav_global_planner.core.scene import find_scene, load_scene
+                         PlannerClient, pose_msg, READY_TEXT, Recorder, RosClient, RUN_NAMESPACE,
+                         SENSOR_QOS, start_planner, STARTUP_TIMEOUT_S, unique_domain_id,
+                         wait_until)
+from uav_global_planner.core.io.scene import find_scene, load_scene
+from uav_global_planner.core.map.obstacles import Box, ObstacleSet, PointSet, Sphere
 from uav_global_planner.ros import conversions as conv
 
 pytestmark = pytest.mark.ros

@@ -25,7 +25,7 @@ from trajectory_msgs.msg import MultiDOFJointTrajectory
 
 from ros_harness import (LATCHED_QOS, PlannerClient, pose_msg, READY_TEXT, RosClient,
                          RUN_NAMESPACE, start_planner, STARTUP_TIMEOUT_S, unique_domain_id)
-from uav_global_planner.core.scene import find_scene, load_scene
+from uav_global_planner.core.io.scene import find_scene, load_scene
 from uav_global_planner.ros import conversions as conv
 from uav_global_planner.ros.nav2_client import ExecutorCalls, get_result, send_goal
 

@@ -9,9 +9,9 @@ import pytest
 from scipy.spatial import cKDTree
 
 from uav_global_planner.core.config import PlannerConfig
-from uav_global_planner.core.obstacles import ObstacleSet
-from uav_global_planner.core.scene import find_scene, load_scene
-from uav_global_planner.core.terrain import HeightField
+from uav_global_planner.core.io.scene import find_scene, load_scene
+from uav_global_planner.core.map.obstacles import ObstacleSet
+from uav_global_planner.core.map.terrain import HeightField
 from uav_global_planner_tools import outdoor_scenes as outdoor
 
 REPO_ROOT = Path(__file__).resolve().parents[1]

@@ -62,7 +62,7 @@ def test_package_data_holds_the_shipped_configuration(installed, repo_root):
 
 
 def test_shipped_scene_and_config_resolve_from_the_install(installed, tmp_path):
-    code = ('from uav_global_planner.core.scene import find_scene, shipped_scenes\n'
+    code = ('from uav_global_planner.core.io.scene import find_scene, shipped_scenes\n'
             'from uav_global_planner_tools.processes import find_config\n'
             "print(find_scene('paper_medium'))\n"
             'print(len(shipped_scenes()))\n'

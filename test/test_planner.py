@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from uav_global_planner.core.config import PlannerConfig
-from uav_global_planner.core.obstacles import Box, ObstacleSet, Sphere
+from uav_global_planner.core.io.scene import find_scene, load_scene
+from uav_global_planner.core.map.obstacles import Box, ObstacleSet, Sphere
 from uav_global_planner.core.planner import densify, Planner
-from uav_global_planner.core.scene import find_scene, load_scene
 from uav_global_planner.core.status import PlanStatus
 
 SMALL = PlannerConfig(bounds_min=(0.0, 0.0, 0.0), bounds_max=(6.0, 6.0, 4.0), resolution=0.25,

@@ -12,8 +12,8 @@ import pytest
 import yaml
 
 from uav_global_planner.cli.plotting import plot_scene_html, scene_figure
+from uav_global_planner.core.io.scene import load_scene
 from uav_global_planner.core.planner import Planner
-from uav_global_planner.core.scene import load_scene
 
 # The flags that keep a headless Chromium off the network and out of the user's profile.
 CHROMIUM_FLAGS = ('--headless', '--no-sandbox', '--disable-gpu', '--disable-background-networking',

@@ -50,11 +50,11 @@ import yaml
 from uav_global_planner.cli.main import main as uav_plan_main
 from uav_global_planner.core.config import PlannerConfig
 from uav_global_planner.core.errors import InvalidInputError
-from uav_global_planner.core.mapfiles import load_map_points
-from uav_global_planner.core.obstacles import Box, ObstacleSet, PointSet, Sphere
+from uav_global_planner.core.io.mapfiles import load_map_points
+from uav_global_planner.core.io.scene import load_scene, parse_scene
+from uav_global_planner.core.map.obstacles import Box, ObstacleSet, PointSet, Sphere
 from uav_global_planner.core.planner import Planner
 from uav_global_planner.core.result import PlanResult
-from uav_global_planner.core.scene import load_scene, parse_scene
 from uav_global_planner.core.status import PlanStatus
 
 HERE = Path(__file__).resolve().parent

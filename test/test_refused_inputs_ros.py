@@ -51,7 +51,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 from ros_harness import (assert_clean_exit, LATCHED_QOS, marker, marker_array, min_clearance,
                          odom_msg, PlannerClient, pose_msg, RosClient, RUN_NAMESPACE,
                          start_planner, unique_domain_id)
-from uav_global_planner.core.scene import find_scene, load_scene
+from uav_global_planner.core.io.scene import find_scene, load_scene
 from uav_global_planner.core.status import PlanStatus
 from uav_global_planner.ros import conversions as conv
 from uav_global_planner.ros import nav2_interfaces

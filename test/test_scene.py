@@ -8,8 +8,8 @@ import pytest
 import yaml
 
 from uav_global_planner.core.errors import InvalidInputError
-from uav_global_planner.core.obstacles import Box, PointSet, Sphere
-from uav_global_planner.core.scene import find_scene, load_scene, parse_scene, shipped_scenes
+from uav_global_planner.core.io.scene import find_scene, load_scene, parse_scene, shipped_scenes
+from uav_global_planner.core.map.obstacles import Box, PointSet, Sphere
 
 VALID = {
     'frame_id': 'map',

@@ -1,4 +1,4 @@
-"""Tests of the grid search (uav_global_planner.core.search).
+"""Tests of the grid search (uav_global_planner.core.search.grid_search).
 
 Costs are checked against an independent shortest-path computation: the 26-connected graph over
 the free nodes is built with numpy and solved with scipy.sparse.csgraph (test/helpers/scenes.py).
@@ -17,17 +17,16 @@ from helpers.scenes import graph_distances
 import numpy as np
 import pytest
 
-from uav_global_planner.core import search as search_module
 from uav_global_planner.core.config import ALGORITHMS
-from uav_global_planner.core.errors import (GoalOccupiedError, InvalidInputError,
-                                            NoValidPathError, PlanningTimeoutError,
-                                            StartOccupiedError)
-from uav_global_planner.core.grid import VoxelGrid
-from uav_global_planner.core.inflation import blocked_mask
+from uav_global_planner.core.errors import (GoalOccupiedError, InvalidInputError, NoValidPathError,
+                                            PlanningTimeoutError, StartOccupiedError)
 from uav_global_planner.core.jit import JIT_ENABLED
-from uav_global_planner.core.obstacles import Box, ObstacleSet, PointSet, Sphere
-from uav_global_planner.core.search import (ALGORITHM_CODES, DEFAULT_WEIGHT, search,
-                                            SearchResult, SearchWorkspace)
+from uav_global_planner.core.map.grid import VoxelGrid
+from uav_global_planner.core.map.inflation import blocked_mask
+from uav_global_planner.core.map.obstacles import Box, ObstacleSet, PointSet, Sphere
+from uav_global_planner.core.search import grid_search as search_module
+from uav_global_planner.core.search.grid_search import (ALGORITHM_CODES, DEFAULT_WEIGHT, search,
+                                                        SearchResult, SearchWorkspace)
 
 REPO = Path(__file__).resolve().parents[1]
 OPTIMAL = ('dijkstra', 'astar', 'octile')
@@ -305,7 +304,7 @@ _SUBPROCESS_SCRIPT = """
 import json
 import numpy as np
 from uav_global_planner.core.jit import JIT_ENABLED
-from uav_global_planner.core.search import ALGORITHM_CODES, search
+from uav_global_planner.core.search.grid_search import ALGORITHM_CODES, search
 blocked = np.zeros((9, 8, 7), dtype=bool)
 blocked[3:6, 1:8, 0:6] = True
 blocked[6, 0:3, 2] = True

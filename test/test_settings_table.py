@@ -26,7 +26,7 @@ from uav_global_planner.cli.main import _parser, _UsageError
 from uav_global_planner.core import settings as table
 from uav_global_planner.core.config import PlannerConfig, validate_config
 from uav_global_planner.core.errors import InvalidInputError
-from uav_global_planner.core.scene import parse_scene
+from uav_global_planner.core.io.scene import parse_scene
 from uav_global_planner.core.settings import INT64_MAX, Kind, PLANNER_SETTINGS, Setting
 
 parameters = pytest.importorskip('uav_global_planner.ros.parameters')

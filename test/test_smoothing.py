@@ -15,13 +15,13 @@ from scipy.interpolate import CubicSpline, PPoly
 import yaml
 
 from uav_global_planner.core.errors import InvalidInputError, NoValidPathError
-from uav_global_planner.core.grid import VoxelGrid
-from uav_global_planner.core.inflation import blocked_mask
-from uav_global_planner.core.obstacles import Box, ObstacleSet, PointSet, Sphere
-from uav_global_planner.core.repair import start_spline
+from uav_global_planner.core.map.grid import VoxelGrid
+from uav_global_planner.core.map.inflation import blocked_mask
+from uav_global_planner.core.map.obstacles import Box, ObstacleSet, PointSet, Sphere
+from uav_global_planner.core.path.repair import start_spline
+from uav_global_planner.core.path.shortcut import shortcut_path
+from uav_global_planner.core.path.smoothing import smooth_path, SmoothedPath
 from uav_global_planner.core.result import polyline_length
-from uav_global_planner.core.shortcut import shortcut_path
-from uav_global_planner.core.smoothing import smooth_path, SmoothedPath
 
 SCENES = Path(__file__).resolve().parents[1] / 'config' / 'scenes'
 LIPSCHITZ = math.sqrt(3.0) / 2.0

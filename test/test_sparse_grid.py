@@ -20,18 +20,18 @@ import pytest
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
 
-from uav_global_planner.core import inflation, sparse_grid
-from uav_global_planner.core.airspace import Cylinder, InclusionCircle
 from uav_global_planner.core.config import PlannerConfig
 from uav_global_planner.core.errors import InvalidInputError
-from uav_global_planner.core.grid import VoxelGrid
-from uav_global_planner.core.inflation import blocked_mask, reinflate_sparse
-from uav_global_planner.core.live_map import LiveMapBuilder, MaskBuffers
-from uav_global_planner.core.obstacles import Box, Obstacle, ObstacleSet, PointSet, Sphere
+from uav_global_planner.core.map import inflation, sparse_grid
+from uav_global_planner.core.map.airspace import Cylinder, InclusionCircle
+from uav_global_planner.core.map.grid import VoxelGrid
+from uav_global_planner.core.map.inflation import blocked_mask, reinflate_sparse
+from uav_global_planner.core.map.live_map import LiveMapBuilder, MaskBuffers
+from uav_global_planner.core.map.obstacles import Box, Obstacle, ObstacleSet, PointSet, Sphere
+from uav_global_planner.core.map.sparse_grid import (choose_layout, first_free_node, FREE, FULL,
+                                                     SparseMask)
 from uav_global_planner.core.planner import Planner
-from uav_global_planner.core.search import SearchWorkspace
-from uav_global_planner.core.sparse_grid import (choose_layout, first_free_node, FREE, FULL,
-                                                 SparseMask)
+from uav_global_planner.core.search.grid_search import SearchWorkspace
 
 
 def _scene(rng: np.random.Generator, grid: VoxelGrid, fence: bool) -> ObstacleSet:
@@ -320,9 +320,9 @@ _CHILD = textwrap.dedent("""
     import json, os
     import numpy as np
     from uav_global_planner.core.config import PlannerConfig
-    from uav_global_planner.core.obstacles import Box, ObstacleSet, Sphere
+    from uav_global_planner.core.map.obstacles import Box, ObstacleSet, Sphere
     from uav_global_planner.core.planner import Planner
-    from uav_global_planner.core.sparse_grid import SparseMask
+    from uav_global_planner.core.map.sparse_grid import SparseMask
 
     def rss():
         with open('/proc/self/statm') as handle:

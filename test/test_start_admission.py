@@ -1,5 +1,5 @@
 """Starts and goals on the ground: lifted straight up by at most start_tolerance, or refused
-with the distance and the fix (core/start_admission.py), in the core and through ``uav-plan``."""
+with the distance and the fix (core/search/start_admission.py), in the core and through ``uav-plan``."""
 
 import json
 from pathlib import Path
@@ -10,16 +10,16 @@ import numpy as np
 import pytest
 import yaml
 
-from uav_global_planner.core.clearance import certify_segments
 from uav_global_planner.core.config import PlannerConfig
-from uav_global_planner.core.obstacles import Box, ObstacleSet
+from uav_global_planner.core.io.scene import parse_scene
+from uav_global_planner.core.map.obstacles import Box, ObstacleSet
+from uav_global_planner.core.map.terrain import flat_ground
+from uav_global_planner.core.path.clearance import certify_segments
 from uav_global_planner.core.planner import Planner
-from uav_global_planner.core.scene import parse_scene
+from uav_global_planner.core.search.start_admission import (admit, explain, FREE_ROOM_CELLS, GOAL,
+                                                            is_free, START)
 from uav_global_planner.core.settings import SETTINGS_BY_NAME
-from uav_global_planner.core.start_admission import (admit, explain, FREE_ROOM_CELLS, GOAL,
-                                                     is_free, START)
 from uav_global_planner.core.status import PlanStatus
-from uav_global_planner.core.terrain import flat_ground
 
 DELTA, GAMMA = 0.5, 0.2
 CONFIG = PlannerConfig(bounds_min=(0.0, 0.0, 0.0), bounds_max=(10.0, 10.0, 6.0),

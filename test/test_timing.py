@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 
 from uav_global_planner.core.errors import InvalidInputError, NoValidPathError
-from uav_global_planner.core.motion_limits import GRAVITY, MotionLimits
-from uav_global_planner.core.obstacles import ObstacleSet
-from uav_global_planner.core.smoothing import smooth_path, SmoothedPath
-from uav_global_planner.core.timing import (_Stations, check_limits, StartMotion,
-                                            time_parameterize)
-from uav_global_planner.core.yaw import YAW_ACCELERATION
+from uav_global_planner.core.map.obstacles import ObstacleSet
+from uav_global_planner.core.path.motion_limits import GRAVITY, MotionLimits
+from uav_global_planner.core.path.smoothing import smooth_path, SmoothedPath
+from uav_global_planner.core.path.timing import (_Stations, check_limits, StartMotion,
+                                                 time_parameterize)
+from uav_global_planner.core.path.yaw import YAW_ACCELERATION
 
 DEFAULTS = MotionLimits()
 # Dense check step [s]: the reference is evaluated exactly at these times.

@@ -5,11 +5,11 @@ import numpy as np
 import pytest
 
 from uav_global_planner.core.config import PlannerConfig, validate_config
-from uav_global_planner.core.obstacles import Box, ObstacleSet, Sphere
+from uav_global_planner.core.map.obstacles import Box, ObstacleSet, Sphere
+from uav_global_planner.core.path.tracking import (MIN_TRACKING_SPEED, tracking_error,
+                                                   TRACKING_ERROR_AT_REST,
+                                                   TRACKING_ERROR_PER_SPEED, tracking_speed_cap)
 from uav_global_planner.core.planner import Planner
-from uav_global_planner.core.tracking import (MIN_TRACKING_SPEED, tracking_error,
-                                              TRACKING_ERROR_AT_REST, TRACKING_ERROR_PER_SPEED,
-                                              tracking_speed_cap)
 
 # A corridor between two boxes, 2.4 m wide, which the straight path flies along.
 WALLS = ObstacleSet([Box([-1.0, 1.2, 0.0], [21.0, 3.0, 6.0]),

@@ -2,7 +2,7 @@
 
 Real ``.bt`` files are written with the OctoMap bindings: a scan of an L-shaped corridor (free
 cells above an occupied floor) whose inside corner is a room nobody looked into, and a ray-cast
-scan from one sensor position. The boxes of :mod:`uav_global_planner.core.unknown_space` must
+scan from one sensor position. The boxes of :mod:`uav_global_planner.core.map.unknown_space` must
 cover exactly what the tree does not know (``tree.search`` finds no node there); with ``free``
 the plan cuts through the room, with ``occupied`` (the default) it keeps the margin from it, and
 with ``cost`` it goes around when the detour costs less than ``unknown_cost`` per metre saved.
@@ -21,15 +21,16 @@ from uav_global_planner.cli.main import main
 from uav_global_planner.cli.report import format_summary, result_to_dict
 from uav_global_planner.core.config import PlannerConfig, validate_config
 from uav_global_planner.core.errors import InvalidInputError
-from uav_global_planner.core.grid import VoxelGrid
-from uav_global_planner.core.inflation import blocked_mask
-from uav_global_planner.core.obstacles import ObstacleSet, Sphere
+from uav_global_planner.core.io.scene import load_scene, parse_scene
+from uav_global_planner.core.map.grid import VoxelGrid
+from uav_global_planner.core.map.inflation import blocked_mask
+from uav_global_planner.core.map.obstacles import ObstacleSet, Sphere
+from uav_global_planner.core.map.unknown_space import (combine, known_volume_unknown, merge_boxes,
+                                                       octomap_unknown, octree_unknown,
+                                                       UnknownSpace)
 from uav_global_planner.core.planner import densify, Planner
-from uav_global_planner.core.scene import load_scene, parse_scene
-from uav_global_planner.core.search import SearchWorkspace
+from uav_global_planner.core.search.grid_search import SearchWorkspace
 from uav_global_planner.core.status import PlanStatus
-from uav_global_planner.core.unknown_space import (combine, known_volume_unknown, merge_boxes,
-                                                   octomap_unknown, octree_unknown, UnknownSpace)
 
 RESOLUTION = 0.2
 BOUNDS = ([0.0, 0.0, 0.0], [12.0, 8.0, 4.0])
@@ -347,8 +348,8 @@ def test_node_diagnostics_carry_the_length(tmp_path):
 def test_the_node_keeps_out_of_the_unknown_space_of_an_octomap_map_file(tmp_path):
     pytest.importorskip('rclpy')
     from diagnostic_msgs.msg import DiagnosticArray
-    from ros_harness import PlannerClient, RosClient, RUN_NAMESPACE, start_planner, \
-        unique_domain_id
+    from ros_harness import (PlannerClient, RosClient, RUN_NAMESPACE, start_planner,
+                             unique_domain_id)
     from uav_global_planner.ros import conversions as conv
     write_corridor_scan(tmp_path / 'scan.bt')
     domain_id = unique_domain_id()

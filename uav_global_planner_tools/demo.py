@@ -23,7 +23,7 @@ from nav_msgs.msg import Path as PathMsg
 import numpy as np
 
 from uav_global_planner.core.errors import InvalidInputError
-from uav_global_planner.core.scene import find_scene, load_scene, Scene
+from uav_global_planner.core.io.scene import find_scene, load_scene, Scene
 from uav_global_planner.ros import conversions as conv
 from uav_global_planner.ros.background_node import BackgroundNode
 from uav_global_planner.ros.names import NODE_NAME

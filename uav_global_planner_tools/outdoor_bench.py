@@ -50,13 +50,13 @@ from typing import Any, Callable, Dict, List, Optional, Union
 import numpy as np
 
 from uav_global_planner.core.config import PlannerConfig
-from uav_global_planner.core.grid import VoxelGrid
-from uav_global_planner.core.inflation import blocked_mask
-from uav_global_planner.core.obstacles import Box, ObstacleSet, PointSet, Sphere
+from uav_global_planner.core.io.scene import find_scene, load_scene, Scene
+from uav_global_planner.core.map.grid import VoxelGrid
+from uav_global_planner.core.map.inflation import blocked_mask
+from uav_global_planner.core.map.obstacles import Box, ObstacleSet, PointSet, Sphere
+from uav_global_planner.core.map.sparse_grid import SparseMask
 from uav_global_planner.core.planner import Planner
-from uav_global_planner.core.scene import find_scene, load_scene, Scene
-from uav_global_planner.core.search import ALGORITHM_CODES, SearchWorkspace
-from uav_global_planner.core.sparse_grid import SparseMask
+from uav_global_planner.core.search.grid_search import ALGORITHM_CODES, SearchWorkspace
 from uav_global_planner_tools import outdoor_scenes
 
 # Node cap the benchmark allows (city1km has 101 M nodes, the search grid 99 M).

@@ -26,7 +26,7 @@ from typing import Any, Dict, List, Optional, Tuple
 import numpy as np
 
 from uav_global_planner.core.config import PlannerConfig, validate_config
-from uav_global_planner.core.obstacles import Box, Obstacle, ObstacleSet, PointSet, Sphere
+from uav_global_planner.core.map.obstacles import Box, Obstacle, ObstacleSet, PointSet, Sphere
 
 Triple = Tuple[float, float, float]
 

@@ -24,7 +24,7 @@ import threading
 import time
 from typing import Any, Dict, List, Mapping, Optional, Sequence
 
-from uav_global_planner.core.scene import Scene, shipped_config_dirs
+from uav_global_planner.core.io.scene import Scene, shipped_config_dirs
 from uav_global_planner.ros.names import NODE_MODULE, READY_TEXT, SCENE_PUBLISHER_MODULE
 
 

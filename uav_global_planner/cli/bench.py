@@ -26,10 +26,10 @@ from uav_global_planner.cli.options import HelpFormatter
 from uav_global_planner.cli.report import finite_or_none, format_table
 from uav_global_planner.core.config import ALGORITHMS
 from uav_global_planner.core.errors import InvalidInputError
-from uav_global_planner.core.grid import VoxelGrid
-from uav_global_planner.core.inflation import blocked_mask
+from uav_global_planner.core.io.scene import find_scene, load_scene, shipped_scenes
+from uav_global_planner.core.map.grid import VoxelGrid
+from uav_global_planner.core.map.inflation import blocked_mask
 from uav_global_planner.core.planner import Planner
-from uav_global_planner.core.scene import find_scene, load_scene, shipped_scenes
 
 _EXIT_CODES = ('exit codes:\n'
                '  0  the figures were printed\n'

@@ -5,9 +5,9 @@ import statistics
 from typing import Dict, List, Sequence
 
 from uav_global_planner.core.config import ALGORITHMS
+from uav_global_planner.core.io.scene import Scene
 from uav_global_planner.core.planner import Planner
 from uav_global_planner.core.result import PlanResult
-from uav_global_planner.core.scene import Scene
 
 
 @dataclass(frozen=True)

@@ -22,14 +22,14 @@ import numpy as np
 from uav_global_planner.cli.options import add_algorithm_option
 from uav_global_planner.core.config import validate_config
 from uav_global_planner.core.errors import InvalidInputError
-from uav_global_planner.core.geodesy import GeodeticOrigin, MissingDependencyError, parse_origin
+from uav_global_planner.core.io.geodesy import GeodeticOrigin, MissingDependencyError, parse_origin
+from uav_global_planner.core.io.scene import Scene
+from uav_global_planner.core.io.text_files import parse_text_file
 from uav_global_planner.core.mission import (build_mission, END_ACTIONS, FIRMWARES,
                                              format_from_path, FORMATS, MAV_CMD_NAV_TAKEOFF,
-                                             Mission, MissionSettings,
-                                             UncertifiableMissionError, write_mission)
+                                             Mission, MissionSettings, UncertifiableMissionError,
+                                             write_mission)
 from uav_global_planner.core.planner import Planner
-from uav_global_planner.core.scene import Scene
-from uav_global_planner.core.text_files import parse_text_file
 
 EXIT_OK = 0
 EXIT_FAILED = 1

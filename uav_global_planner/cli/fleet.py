@@ -28,12 +28,11 @@ from typing import Any, Dict, List, Optional, Sequence, Tuple
 
 from uav_global_planner.cli.options import HelpFormatter
 from uav_global_planner.core.errors import InvalidInputError
-from uav_global_planner.core.fleet import (FleetResult, load_missions, MissionBatch,
-                                           MissionOutcome)
-from uav_global_planner.core.geodesy import GeodeticOrigin, MissingDependencyError, parse_origin
+from uav_global_planner.core.fleet import FleetResult, load_missions, MissionBatch, MissionOutcome
+from uav_global_planner.core.io.geodesy import GeodeticOrigin, MissingDependencyError, parse_origin
+from uav_global_planner.core.io.scene import find_scene, load_scene, Scene, with_ground
 from uav_global_planner.core.mission import (build_mission, MissionSettings,
                                              UncertifiableMissionError, write_mission)
-from uav_global_planner.core.scene import find_scene, load_scene, Scene, with_ground
 
 EXIT_OK = 0
 EXIT_REJECTED = 1

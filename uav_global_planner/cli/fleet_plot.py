@@ -14,7 +14,7 @@ import numpy as np
 
 from uav_global_planner.cli.plotting import obstacle_mesh_trace, plotly_objects
 from uav_global_planner.core.fleet import FleetResult, Flight
-from uav_global_planner.core.scene import Scene
+from uav_global_planner.core.io.scene import Scene
 
 # Sides of the polygon drawn for an envelope's top and bottom circle.
 _SIDES = 16

@@ -17,27 +17,26 @@ import numpy as np
 from uav_global_planner.cli.compare import compare_algorithms
 from uav_global_planner.cli.export import add_export_command, run_export
 from uav_global_planner.cli.memory import (allowance_bytes, check as check_memory, estimate,
-                                           gigabytes, limited, MemoryLimitError,
-                                           SEARCH_MAX_NODES)
+                                           gigabytes, limited, MemoryLimitError, SEARCH_MAX_NODES)
 from uav_global_planner.cli.options import (add_algorithm_option, check_image_file, EXIT_CODES,
                                             HelpFormatter, join_negative_values, scene_help)
 from uav_global_planner.cli.report import (admission_lines, admission_to_dict, finite_or_none,
                                            format_summary, format_table, map_report_lines,
                                            result_to_dict)
-from uav_global_planner.core.airspace import Airspace, load_geofence
 from uav_global_planner.core.budget import PlanBudget, PlanStage
 from uav_global_planner.core.config import validate_config
 from uav_global_planner.core.errors import InvalidInputError, PlanningError
-from uav_global_planner.core.mapfiles import load_map_files
-from uav_global_planner.core.motion_limits import MotionLimits
-from uav_global_planner.core.obstacles import ObstacleSet
+from uav_global_planner.core.io.mapfiles import load_map_files
+from uav_global_planner.core.io.scene import find_scene, load_scene, Scene, with_ground
+from uav_global_planner.core.map.airspace import Airspace, load_geofence
+from uav_global_planner.core.map.obstacles import ObstacleSet
+from uav_global_planner.core.map.unknown_space import combine, unknown_from_map_files
+from uav_global_planner.core.path.motion_limits import MotionLimits
 from uav_global_planner.core.planner import Planner
 from uav_global_planner.core.result import PlanResult
-from uav_global_planner.core.scene import find_scene, load_scene, Scene, with_ground
+from uav_global_planner.core.search.start_admission import Admission, admit, explain, GOAL, START
 from uav_global_planner.core.settings import format_value, Kind, planner_settings, Setting
-from uav_global_planner.core.start_admission import Admission, admit, explain, GOAL, START
 from uav_global_planner.core.status import PlanStatus
-from uav_global_planner.core.unknown_space import combine, unknown_from_map_files
 
 EXIT_OK = 0
 EXIT_PLAN_FAILED = 1
@@ -272,7 +271,7 @@ def _warm_planner(scene: Scene, budget: PlanBudget) -> Tuple[Planner, bool]:
 def _plan_admitted(planner: Planner, scene: Scene, algorithm: str, ready: bool = True,
                    **options: Any) -> Tuple[PlanResult, Tuple[Admission, Admission]]:
     """Plan the scene from its start to its goal, each first admitted by the scene's
-    start_tolerance (:mod:`uav_global_planner.core.start_admission`): a start or goal on the
+    start_tolerance (:mod:`uav_global_planner.core.search.start_admission`): a start or goal on the
     ground is lifted to the lowest free height, and a refusal says how far and the fix.
     Without a grid (``ready`` False: the budget ran out building it) the points are taken as
     asked and the plan reports the timeout."""

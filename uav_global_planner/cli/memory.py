@@ -9,8 +9,8 @@ process's data segment (``RLIMIT_DATA``) at the allowance while planning, so tha
 raises ``MemoryError`` (reported with the figures, exit code 2) instead of waking the kernel's
 out-of-memory killer.
 
-The figures follow the layouts of :mod:`uav_global_planner.core.sparse_grid` and
-:mod:`uav_global_planner.core.search`:
+The figures follow the layouts of :mod:`uav_global_planner.core.map.sparse_grid` and
+:mod:`uav_global_planner.core.search.grid_search`:
 
 - dense grids (below ``SPARSE_MIN_NODES`` nodes): 1 byte a node of mask and 17 bytes a node of
   search records, all resident after a few queries, plus up to 20 bytes a node of heap;
@@ -30,8 +30,8 @@ from typing import Iterator, Optional
 import numpy as np
 
 from uav_global_planner.core.config import PlannerConfig
-from uav_global_planner.core.obstacles import ObstacleSet
-from uav_global_planner.core.sparse_grid import BRICK, BRICK_NODES, choose_layout
+from uav_global_planner.core.map.obstacles import ObstacleSet
+from uav_global_planner.core.map.sparse_grid import BRICK, BRICK_NODES, choose_layout
 
 # Bytes a node: dense mask, search record (cost, stamp, heap position, parent), heap entry.
 _MASK_BYTES = 1
@@ -49,7 +49,8 @@ _STRADDLE = 2.0
 
 _GB = 1e9
 
-#: Most nodes a search takes (node numbers are int32 in :mod:`uav_global_planner.core.search`).
+#: Most nodes a search takes (node numbers are int32 in
+#: :mod:`uav_global_planner.core.search.grid_search`).
 SEARCH_MAX_NODES = 2 ** 31 - 1
 
 
@@ -67,7 +68,8 @@ class MemoryEstimate:
     nodes : int
         Grid nodes.
     layout : str
-        ``'dense'`` or ``'sparse'`` (:func:`~uav_global_planner.core.sparse_grid.choose_layout`).
+        ``'dense'`` or ``'sparse'``
+        (:func:`~uav_global_planner.core.map.sparse_grid.choose_layout`).
     grid_bytes : int
         Built before any search: the mask, and the search's per-node records (dense) or brick
         table (block-sparse); for a block-sparse grid the surface bricks are estimated from the

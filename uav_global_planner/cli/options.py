@@ -9,7 +9,7 @@ from typing import List, Optional, Sequence
 
 from uav_global_planner.core.config import ALGORITHMS
 from uav_global_planner.core.errors import InvalidInputError
-from uav_global_planner.core.scene import shipped_scenes
+from uav_global_planner.core.io.scene import shipped_scenes
 
 #: The epilog of every ``uav-plan`` command's help.
 EXIT_CODES = ('exit codes:\n'

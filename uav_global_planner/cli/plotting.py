@@ -17,8 +17,8 @@ from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # noqa: E402
 import numpy as np  # noqa: E402
 
 from uav_global_planner.core.errors import MissingDependencyError  # noqa: E402
-from uav_global_planner.core.obstacles import ObstacleSet  # noqa: E402
-from uav_global_planner.core.scene import Scene  # noqa: E402
+from uav_global_planner.core.io.scene import Scene  # noqa: E402
+from uav_global_planner.core.map.obstacles import ObstacleSet  # noqa: E402
 
 # Oblique viewpoint of the 3D view (elevation, azimuth) [deg].
 _OBLIQUE = (28.0, -60.0)

@@ -8,7 +8,7 @@ matplotlib.use('Agg')
 import matplotlib.pyplot as plt  # noqa: E402 - the backend must be first
 import numpy as np  # noqa: E402
 
-from uav_global_planner.core.motion_limits import MotionLimits, tilt_and_thrust  # noqa: E402
+from uav_global_planner.core.path.motion_limits import MotionLimits, tilt_and_thrust  # noqa: E402
 from uav_global_planner.core.result import Trajectory  # noqa: E402
 
 #: Time step of the drawn curves [s].

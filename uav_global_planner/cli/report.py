@@ -5,9 +5,9 @@ from typing import Any, Dict, Iterable, List, Optional, Sequence
 
 import numpy as np
 
-from uav_global_planner.core.mapfiles import MapReport
+from uav_global_planner.core.io.mapfiles import MapReport
 from uav_global_planner.core.result import PlanResult
-from uav_global_planner.core.start_admission import Admission
+from uav_global_planner.core.search.start_admission import Admission
 
 
 def finite_or_none(value: float) -> Any:

@@ -34,21 +34,22 @@ if TYPE_CHECKING:  # the names as the type checker sees them
                                                 PlanningTimeoutError as PlanningTimeoutError,
                                                 StartOccupiedError as StartOccupiedError,
                                                 StartOutsideMapError as StartOutsideMapError)
-    from uav_global_planner.core.obstacles import (Box as Box, ObstacleSet as ObstacleSet,
-                                                   PointSet as PointSet, Sphere as Sphere)
+    from uav_global_planner.core.io.scene import (find_scene as find_scene,
+                                                  load_scene as load_scene, Scene as Scene)
+    from uav_global_planner.core.map.obstacles import (Box as Box, ObstacleSet as ObstacleSet,
+                                                       PointSet as PointSet, Sphere as Sphere)
+    from uav_global_planner.core.map.terrain import HeightField as HeightField
     from uav_global_planner.core.planner import Planner as Planner
     from uav_global_planner.core.result import PlanResult as PlanResult
-    from uav_global_planner.core.scene import (find_scene as find_scene,
-                                               load_scene as load_scene, Scene as Scene)
     from uav_global_planner.core.status import PlanStatus as PlanStatus
-    from uav_global_planner.core.terrain import HeightField as HeightField
 
 #: Public name -> the module of the core that defines it.
 _PUBLIC: Dict[str, str] = {
     'Planner': 'planner', 'PlannerConfig': 'config', 'PlanResult': 'result',
-    'PlanStatus': 'status', 'load_scene': 'scene', 'find_scene': 'scene', 'Scene': 'scene',
-    'Sphere': 'obstacles', 'Box': 'obstacles', 'PointSet': 'obstacles',
-    'ObstacleSet': 'obstacles', 'HeightField': 'terrain',
+    'PlanStatus': 'status', 'load_scene': 'io.scene', 'find_scene': 'io.scene',
+    'Scene': 'io.scene',
+    'Sphere': 'map.obstacles', 'Box': 'map.obstacles', 'PointSet': 'map.obstacles',
+    'ObstacleSet': 'map.obstacles', 'HeightField': 'map.terrain',
     'PlanningError': 'errors', 'InvalidInputError': 'errors',
     'MissingDependencyError': 'errors', 'StartOutsideMapError': 'errors',
     'GoalOutsideMapError': 'errors', 'StartOccupiedError': 'errors',

@@ -8,7 +8,7 @@ from dataclasses import dataclass, fields, replace
 from typing import Any, Dict, Mapping, Union
 
 from uav_global_planner.core.errors import InvalidInputError
-from uav_global_planner.core.grid import VoxelGrid
+from uav_global_planner.core.map.grid import VoxelGrid
 from uav_global_planner.core.settings import (ALGORITHMS, PLANNER_SETTINGS, planner_settings,
                                               SETTINGS_BY_NAME, SMOOTHING_MODES)
 

@@ -19,28 +19,27 @@ from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
-from uav_global_planner.core.airspace import check_endpoint
 from uav_global_planner.core.budget import PlanBudget, PlanStage, ProgressCallback
-from uav_global_planner.core.clearance import certify_pieces, certify_polyline, Pieces
 from uav_global_planner.core.config import ALGORITHMS, PlannerConfig, validate_config
-from uav_global_planner.core.energy import estimate_energy, VehicleModel
 from uav_global_planner.core.errors import (GoalOccupiedError, GoalOutsideMapError,
-                                            InvalidInputError, NoValidPathError,
-                                            PlanningError, StartOccupiedError,
-                                            StartOutsideMapError)
-from uav_global_planner.core.grid import as_point, HALF_CELL_DIAGONAL, VoxelGrid
-from uav_global_planner.core.handover import Handover
-from uav_global_planner.core.inflation import blocked_mask, Mask
-from uav_global_planner.core.motion_limits import MotionLimits
-from uav_global_planner.core.obstacles import ObstacleSet
+                                            InvalidInputError, NoValidPathError, PlanningError,
+                                            StartOccupiedError, StartOutsideMapError)
+from uav_global_planner.core.map.airspace import check_endpoint
+from uav_global_planner.core.map.grid import as_point, HALF_CELL_DIAGONAL, VoxelGrid
+from uav_global_planner.core.map.inflation import blocked_mask, Mask
+from uav_global_planner.core.map.obstacles import ObstacleSet
+from uav_global_planner.core.map.sparse_grid import first_free_node
+from uav_global_planner.core.map.unknown_space import UnknownSpace
+from uav_global_planner.core.path.clearance import certify_pieces, certify_polyline, Pieces
+from uav_global_planner.core.path.energy import estimate_energy, VehicleModel
+from uav_global_planner.core.path.handover import Handover
+from uav_global_planner.core.path.motion_limits import MotionLimits
+from uav_global_planner.core.path.smoothing import smooth_path, SmoothedPath
+from uav_global_planner.core.path.timing import time_parameterize
+from uav_global_planner.core.path.tracking import tracking_speed_cap
 from uav_global_planner.core.result import LegResult, PlanResult, polyline_length, Trajectory
-from uav_global_planner.core.search import SearchWorkspace
-from uav_global_planner.core.smoothing import smooth_path, SmoothedPath
-from uav_global_planner.core.sparse_grid import first_free_node
+from uav_global_planner.core.search.grid_search import SearchWorkspace
 from uav_global_planner.core.status import PlanStatus
-from uav_global_planner.core.timing import time_parameterize
-from uav_global_planner.core.tracking import tracking_speed_cap
-from uav_global_planner.core.unknown_space import UnknownSpace
 
 
 # Relative room, in cells, kept between an endpoint and the safety margin.
@@ -105,7 +104,7 @@ class Planner:
     obstacles : ObstacleSet
         Obstacles in the planning frame [m].
     unknown : UnknownSpace, optional
-        Space the map never observed (:mod:`uav_global_planner.core.unknown_space`); with
+        Space the map never observed (:mod:`uav_global_planner.core.map.unknown_space`); with
         ``config.unknown_space`` occupied its boxes join the obstacles (:attr:`obstacles`).
         Every plan reports the length of its curve inside it.
 
@@ -239,7 +238,7 @@ class Planner:
         obstacles : ObstacleSet
         blocked : numpy.ndarray of bool, optional
             Occupancy of every node for ``obstacles`` and ``grid_key`` (see
-            :func:`~uav_global_planner.core.inflation.blocked_mask`); the planner reads it and
+            :func:`~uav_global_planner.core.map.inflation.blocked_mask`); the planner reads it and
             never writes it, and the caller must not change it while the planner may use it.
         grid_key : tuple, optional
             :meth:`PlannerConfig.grid_key` the mask was built for.
@@ -667,7 +666,7 @@ class Planner:
 
     def _primary(self, checkpoint: Optional[Callable[[], None]] = None) -> _InflatedGrid:
         """The grid and its mask, built on first use; ``checkpoint`` as for
-        :func:`~uav_global_planner.core.inflation.blocked_mask` (what it raises leaves no
+        :func:`~uav_global_planner.core.map.inflation.blocked_mask` (what it raises leaves no
         grid)."""
         if self._inflated is None:
             self._inflated = _InflatedGrid(self._make_grid(), self._obstacles,
@@ -713,7 +712,7 @@ def certify_plan(result: PlanResult, obstacles: ObstacleSet, safety_margin: floa
     """Certify that the curve of a plan keeps ``safety_margin`` from ``obstacles``.
 
     The clearance engine's certificate over the continuous curve (see
-    :mod:`uav_global_planner.core.clearance`); thread-safe, as the obstacle sets are.
+    :mod:`uav_global_planner.core.path.clearance`); thread-safe, as the obstacle sets are.
 
     Parameters
     ----------

@@ -7,7 +7,7 @@ from typing import Any, Optional, Protocol, Tuple
 
 import numpy as np
 
-from uav_global_planner.core.motion_limits import tilt_and_thrust
+from uav_global_planner.core.path.motion_limits import tilt_and_thrust
 from uav_global_planner.core.status import PlanStatus
 
 _EMPTY_PATH = np.empty((0, 3))
@@ -72,7 +72,10 @@ class TrajectoryPeaks:
 
 
 class ContinuousReference(Protocol):
-    """The exact timed reference (:class:`uav_global_planner.core.reference.TimedReference`)."""
+    """The exact timed reference.
+
+    See :class:`uav_global_planner.core.path.reference.TimedReference`.
+    """
 
     @property
     def duration_s(self) -> float:
@@ -169,7 +172,7 @@ class Trajectory:
         """Largest speed, acceleration, jerk, tilt, thrust and yaw rate every ``step_s`` [s].
 
         The limits are kept by construction between samples too (see
-        :mod:`uav_global_planner.core.timing`); this is what a user or a test measures.
+        :mod:`uav_global_planner.core.path.timing`); this is what a user or a test measures.
         """
         duration = self.duration_s
         count = max(2, int(math.ceil(duration / step_s)) + 1)
@@ -294,13 +297,13 @@ class PlanResult:
     failed_leg : int
         The leg that failed (-1 when none, or when the failure is not a leg's).
     curve : PathCurve or None
-        The certified continuous curve (:class:`~uav_global_planner.core.curve.PathCurve`),
+        The certified continuous curve (:class:`~uav_global_planner.core.path.curve.PathCurve`),
         for later clearance checks against new obstacles; None on failure.
     total_time_s : float
         Wall-clock time of the whole request [s].
     energy : EnergyEstimate or None
         Flight time and energy of the trajectory for the configured vehicle
-        (:func:`uav_global_planner.core.energy.estimate_energy`); None on failure.
+        (:func:`uav_global_planner.core.path.energy.estimate_energy`); None on failure.
     planning_margin : float
         Clearance the curve keeps [m]: gamma + vehicle radius + tracking margin.
     start_velocity, start_acceleration : numpy.ndarray, shape (3,)
@@ -310,7 +313,7 @@ class PlanResult:
         [m/s^2]; 0 when the plan continues it exactly.
     unknown_length_m : float
         Length of the smoothed curve (the polyline through its samples) inside space the map
-        never observed [m] (:mod:`uav_global_planner.core.unknown_space`); 0 when the map
+        never observed [m] (:mod:`uav_global_planner.core.map.unknown_space`); 0 when the map
         declares none or the curve avoids it, NaN on failure. A report, not a safety check.
     """
 

@@ -5,7 +5,7 @@ consumers are built from it, so they accept exactly the same values and say the 
 
 - :func:`uav_global_planner.core.config.validate_config` checks each :class:`PlannerConfig`
   field with :meth:`Setting.check`, and :class:`PlannerConfig` takes its defaults from here;
-- the scene files (:mod:`uav_global_planner.core.scene`) read each setting at its
+- the scene files (:mod:`uav_global_planner.core.io.scene`) read each setting at its
   :attr:`Setting.scene_key` and refuse it with :meth:`Setting.check_key`;
 - ``uav-plan`` (:mod:`uav_global_planner.cli.main`) makes its flags from
   :attr:`Setting.flag`, checks their values with :meth:`Setting.refusal` and shows
@@ -32,7 +32,7 @@ from typing import Any, Dict, Iterable, Optional, Tuple
 import numpy as np
 
 from uav_global_planner.core.errors import InvalidInputError
-from uav_global_planner.core.grid import DEFAULT_MAX_VOXELS
+from uav_global_planner.core.map.grid import DEFAULT_MAX_VOXELS
 
 #: Largest value of an integer setting: a ROS 2 integer parameter is a signed 64-bit number.
 INT64_MAX = 2 ** 63 - 1

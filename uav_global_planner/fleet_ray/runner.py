@@ -25,7 +25,7 @@ from uav_global_planner.core.errors import InvalidInputError
 from uav_global_planner.core.fleet import (FleetResult, FleetSettings, Mission, MissionBatch,
                                            MissionError, MissionOutcome, ReservationBook)
 from uav_global_planner.core.fleet.missions import batch_to_plan
-from uav_global_planner.core.scene import Scene
+from uav_global_planner.core.io.scene import Scene
 from uav_global_planner.fleet_ray.airspace import make_airspace, ShardLayout
 from uav_global_planner.fleet_ray.planner_actor import make_planners, Speculation
 from uav_global_planner.fleet_ray.session import import_ray, ray_session
@@ -125,7 +125,7 @@ def plan_fleet_ray(scene: Scene, missions: Union[MissionBatch, Sequence[Mission]
     Parameters
     ----------
     scene : Scene
-        The map, with its ground applied (:func:`~uav_global_planner.core.scene.with_ground`).
+        The map, with its ground applied (:func:`~uav_global_planner.core.io.scene.with_ground`).
     missions : MissionBatch or sequence of Mission
         As for :func:`~uav_global_planner.core.fleet.run_fleet`.
     settings : FleetSettings, optional

@@ -12,11 +12,11 @@ from dataclasses import dataclass
 from typing import Optional, Tuple
 
 from uav_global_planner.core.config import PlannerConfig
-from uav_global_planner.core.inflation import blocked_mask, Mask
-from uav_global_planner.core.obstacles import Obstacle, ObstacleSet
+from uav_global_planner.core.io.scene import Scene
+from uav_global_planner.core.map.inflation import blocked_mask, Mask
+from uav_global_planner.core.map.obstacles import Obstacle, ObstacleSet
+from uav_global_planner.core.map.unknown_space import UnknownSpace
 from uav_global_planner.core.planner import fallback_margin, Planner
-from uav_global_planner.core.scene import Scene
-from uav_global_planner.core.unknown_space import UnknownSpace
 
 
 @dataclass(frozen=True, eq=False)
@@ -59,7 +59,7 @@ def build_shared_map(scene: Scene, with_fallback: bool = True) -> SharedMap:
     Parameters
     ----------
     scene : Scene
-        With its ground (:func:`~uav_global_planner.core.scene.with_ground`) already applied.
+        With its ground (:func:`~uav_global_planner.core.io.scene.with_ground`) already applied.
     with_fallback : bool
         Also build the conservative mask (about half the time of the first).
 

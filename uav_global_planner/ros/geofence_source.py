@@ -14,9 +14,9 @@ obstacles, with the safety margin gamma applied to every wall, floor and ceiling
 from pathlib import Path
 from typing import Any, Dict, Mapping, Tuple
 
-from uav_global_planner.core.airspace import Airspace, load_geofence
 from uav_global_planner.core.errors import InvalidInputError
-from uav_global_planner.core.spatial_index import TableShape
+from uav_global_planner.core.map.airspace import Airspace, load_geofence
+from uav_global_planner.core.map.spatial_index import TableShape
 from uav_global_planner.ros.mission_service import origin_from_value, ORIGIN_PARAMETER
 
 #: The parameters the geofence is read from: a change to any of them reads it again.

@@ -1,7 +1,7 @@
 """The node's ground: the ``ground``, ``min_agl`` and ``max_agl`` parameters as map shapes.
 
 The flat ground and the height band above it
-(:func:`uav_global_planner.core.ground.ground_obstacles`) join the map as shapes of their own,
+(:func:`uav_global_planner.core.map.ground.ground_obstacles`) join the map as shapes of their own,
 next to the marker obstacles and the geofence, so the planner, the certified check of the plan
 in force and the endpoint checks see them as obstacles. They depend on the bounds and the
 planning margin, so a change of any of those settings makes them again. A ``terrain_file``
@@ -12,8 +12,8 @@ follows it; while that file is refused there are no ground shapes (goals are ref
 from typing import Dict, Hashable, Optional, Tuple
 
 from uav_global_planner.core.config import PlannerConfig
-from uav_global_planner.core.ground import ground_obstacles
-from uav_global_planner.core.terrain import HeightField
+from uav_global_planner.core.map.ground import ground_obstacles
+from uav_global_planner.core.map.terrain import HeightField
 from uav_global_planner.ros.terrain_source import TerrainState
 
 #: Namespace of the ground's shapes among the map's shapes. Marker keys are (ns, id) with a ROS

@@ -49,8 +49,8 @@ from rclpy.task import Future
 from std_srvs.srv import Trigger
 
 from uav_global_planner.core.errors import InvalidInputError
-from uav_global_planner.core.geodesy import (GeodeticOrigin, MissingDependencyError,
-                                             origin_from_sequence)
+from uav_global_planner.core.io.geodesy import (GeodeticOrigin, MissingDependencyError,
+                                                origin_from_sequence)
 from uav_global_planner.core.mission import (build_mission, format_from_path, FORMATS,
                                              MissionSettings, UncertifiableMissionError,
                                              write_mission)

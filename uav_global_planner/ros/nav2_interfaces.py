@@ -70,7 +70,7 @@ from rclpy.task import Future
 from uav_global_planner.core.config import ALGORITHMS
 from uav_global_planner.core.errors import InvalidInputError
 from uav_global_planner.core.result import PlanResult
-from uav_global_planner.core.start_admission import admit, explain, nearest_free_node, START
+from uav_global_planner.core.search.start_admission import admit, explain, nearest_free_node, START
 from uav_global_planner.core.status import (NAV2_CODE_BY_STATUS, NAV2_INVALID_PLANNER,
                                             NAV2_NONE, NAV2_UNKNOWN, PlanStatus)
 from uav_global_planner.ros import conversions as conv

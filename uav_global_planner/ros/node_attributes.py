@@ -33,11 +33,11 @@ from rclpy.node import Node
 from rclpy.publisher import Publisher
 from rclpy.subscription import Subscription
 
-from uav_global_planner.core.airspace import Airspace
 from uav_global_planner.core.config import PlannerConfig
-from uav_global_planner.core.live_map import LiveMap, LiveMapBuilder
-from uav_global_planner.core.mapfiles import MapPoints
-from uav_global_planner.core.obstacles import Obstacle
+from uav_global_planner.core.io.mapfiles import MapPoints
+from uav_global_planner.core.map.airspace import Airspace
+from uav_global_planner.core.map.live_map import LiveMap, LiveMapBuilder
+from uav_global_planner.core.map.obstacles import Obstacle
 from uav_global_planner.core.planner import ClearanceVerdict, Planner
 from uav_global_planner.core.result import PlanResult
 from uav_global_planner.ros.conversions import MarkerKey

@@ -20,7 +20,7 @@ from typing import Callable, Dict, Optional, Tuple, TypeVar
 from diagnostic_msgs.msg import DiagnosticStatus
 import numpy as np
 
-from uav_global_planner.core.live_map import LiveMap
+from uav_global_planner.core.map.live_map import LiveMap
 from uav_global_planner.core.planner import certify_plan, ClearanceVerdict
 from uav_global_planner.core.result import PlanResult
 from uav_global_planner.ros import conversions as conv

@@ -3,7 +3,7 @@
 A mixin of :class:`~uav_global_planner.ros.planner_node.PlannerNode`. The executor only queues
 the serialised map messages (markers in order, clouds latest-wins); the intake thread
 (:meth:`MapIntake._run_intake`) deserialises, checks and indexes them, updates the inflated
-grid (:class:`~uav_global_planner.core.live_map.LiveMapBuilder`), has the plan in force
+grid (:class:`~uav_global_planner.core.map.live_map.LiveMapBuilder`), has the plan in force
 re-checked against the new map before the worker sees it, and counts what each source
 delivered.
 """
@@ -16,9 +16,9 @@ from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import PointCloud2
 from visualization_msgs.msg import MarkerArray
 
-from uav_global_planner.core.airspace import Airspace
 from uav_global_planner.core.errors import InvalidInputError
-from uav_global_planner.core.live_map import UNCHANGED
+from uav_global_planner.core.map.airspace import Airspace
+from uav_global_planner.core.map.live_map import UNCHANGED
 from uav_global_planner.ros import conversions as conv
 from uav_global_planner.ros.geofence_source import geofence_shapes
 from uav_global_planner.ros.ground_source import ground_key, ground_shapes

@@ -10,8 +10,8 @@ from typing import Any, Deque, Optional, Tuple
 
 import numpy as np
 
-from uav_global_planner.core.airspace import Airspace
-from uav_global_planner.core.live_map import LiveMap
+from uav_global_planner.core.map.airspace import Airspace
+from uav_global_planner.core.map.live_map import LiveMap
 from uav_global_planner.core.result import PlanResult
 from uav_global_planner.ros.parameters import NodeSettings
 from uav_global_planner.ros.start_source import StartSource

@@ -12,7 +12,7 @@ from typing import Dict, Mapping, Optional
 from diagnostic_msgs.msg import DiagnosticStatus
 import numpy as np
 
-from uav_global_planner.core.live_map import LiveMap
+from uav_global_planner.core.map.live_map import LiveMap
 from uav_global_planner.ros import conversions as conv
 from uav_global_planner.ros.geofence_source import describe
 from uav_global_planner.ros.node_attributes import NodeAttributes

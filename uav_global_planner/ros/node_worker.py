@@ -20,7 +20,7 @@ import numpy as np
 from uav_global_planner.core.budget import PlanStage
 from uav_global_planner.core.planner import ClearanceVerdict, Planner
 from uav_global_planner.core.result import PlanResult
-from uav_global_planner.core.start_admission import Admission, admit, explain, GOAL, START
+from uav_global_planner.core.search.start_admission import Admission, admit, explain, GOAL, START
 from uav_global_planner.core.status import NAV2_CODE_BY_STATUS, NAV2_UNKNOWN, PlanStatus
 from uav_global_planner.ros import conversions as conv
 from uav_global_planner.ros.geofence_source import describe
@@ -28,8 +28,7 @@ from uav_global_planner.ros.node_attributes import NodeAttributes
 from uav_global_planner.ros.node_state import Goal, Snapshot
 from uav_global_planner.ros.parameters import NodeSettings
 from uav_global_planner.ros.start_source import StartSource
-from uav_global_planner.ros.takeover import (FOLLOW_DISTANCE_M, Settlement, START_REFUSALS,
-                                             Takeover)
+from uav_global_planner.ros.takeover import FOLLOW_DISTANCE_M, Settlement, START_REFUSALS, Takeover
 
 #: Consecutive plans dropped because the vehicle moved away from their start while they were
 #: computed; after that many the plan is published anyway (with a note), so a slow plan behind
@@ -215,7 +214,8 @@ class PlanningWorker(NodeAttributes):
 
     def _admitted(self, point: np.ndarray, which: str, settings: NodeSettings) -> Admission:
         """The start (goal) to plan from (to), moved to free space by at most
-        ``start_tolerance`` (:func:`~uav_global_planner.core.start_admission.admit`): a landed
+        ``start_tolerance``
+        (:func:`~uav_global_planner.core.search.start_admission.admit`): a landed
         vehicle, below the floor or within gamma of the ground it stands on, is lifted straight
         up (its take-off leg); a goal on the ground likewise (its landing leg)."""
         return admit(self._planner, point, which, settings.start_tolerance,

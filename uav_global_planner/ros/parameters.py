@@ -27,7 +27,7 @@ from rclpy.node import Node
 
 from uav_global_planner.core.config import PlannerConfig, validate_config
 from uav_global_planner.core.errors import InvalidInputError
-from uav_global_planner.core.ground import ground_obstacles
+from uav_global_planner.core.map.ground import ground_obstacles
 from uav_global_planner.core.settings import (by_name, INT64_MAX, Kind, planner_settings,
                                               Setting)
 from uav_global_planner.ros.qos import CLOUD_QOS_BY_RELIABILITY
@@ -217,7 +217,7 @@ class NodeSettings:
     @property
     def start_tolerance(self) -> float:
         """How far a start or goal is moved to free space at most [m] (``config.start_tolerance``,
-        a setting of the core's table: :mod:`uav_global_planner.core.start_admission`)."""
+        a setting of the core's table: :mod:`uav_global_planner.core.search.start_admission`)."""
         return float(self.config.start_tolerance)
 
 

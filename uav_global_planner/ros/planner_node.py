@@ -26,7 +26,7 @@ Three threads share the work:
 - the executor serves topics, parameters, timers and the Nav2 interfaces; map messages are
   taken as serialised bytes and only queued there (markers in order, clouds latest-wins);
 - the map intake (:meth:`PlannerNode._run_intake`) deserialises, checks and indexes them,
-  updates the inflated grid tile by tile (:class:`~uav_global_planner.core.live_map.
+  updates the inflated grid tile by tile (:class:`~uav_global_planner.core.map.live_map.
   LiveMapBuilder`, double-buffered, so a plan always runs on one consistent map), publishes the
   new map to the planning worker and re-checks the plan in force against it at once with the
   certified check (ahead of the vehicle first). A plan the new map makes collide is withdrawn
@@ -76,13 +76,13 @@ from sensor_msgs.msg import PointCloud2
 from trajectory_msgs.msg import MultiDOFJointTrajectory
 from visualization_msgs.msg import MarkerArray
 
-from uav_global_planner.core.airspace import Airspace
 from uav_global_planner.core.config import PlannerConfig
 from uav_global_planner.core.errors import InvalidInputError
-from uav_global_planner.core.live_map import LiveMapBuilder
-from uav_global_planner.core.mapfiles import load_prior_map
+from uav_global_planner.core.io.mapfiles import load_prior_map
+from uav_global_planner.core.map.airspace import Airspace
+from uav_global_planner.core.map.live_map import LiveMapBuilder
+from uav_global_planner.core.map.unknown_space import unknown_from_map_files, UnknownSpace
 from uav_global_planner.core.planner import Planner
-from uav_global_planner.core.unknown_space import unknown_from_map_files, UnknownSpace
 from uav_global_planner.ros import conversions as conv
 from uav_global_planner.ros.geofence_source import (airspace_from_values, geofence_key,
                                                     geofence_shapes)
@@ -139,7 +139,7 @@ class PlannerNode(ParameterHandling, CommandInputs, MapIntake, PlanInForce, Plan
     InvalidInputError
         When the parameters given at start-up are invalid. A ``map_file`` that cannot be read,
         or cannot be right (no usable points, all outside the bounds, see
-        :mod:`~uav_global_planner.core.mapfiles`), is refused instead: the node runs without it,
+        :mod:`~uav_global_planner.core.io.mapfiles`), is refused instead: the node runs without it,
         reports why in the log and the map status, and refuses goals.
     """
 

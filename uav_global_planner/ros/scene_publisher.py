@@ -25,7 +25,7 @@ from sensor_msgs.msg import PointCloud2
 from visualization_msgs.msg import MarkerArray
 
 from uav_global_planner.core.errors import InvalidInputError
-from uav_global_planner.core.scene import find_scene, load_scene, Scene
+from uav_global_planner.core.io.scene import find_scene, load_scene, Scene
 from uav_global_planner.ros import conversions as conv
 from uav_global_planner.ros.qos import COMMAND_QOS, LATCHED_QOS
 

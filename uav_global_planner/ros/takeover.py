@@ -50,7 +50,7 @@ from typing import Any, Callable, Deque, Dict, Optional, Tuple
 
 import numpy as np
 
-from uav_global_planner.core.handover import HANDOVER_MIN_SPEED
+from uav_global_planner.core.path.handover import HANDOVER_MIN_SPEED
 from uav_global_planner.core.result import ReferenceState, Trajectory
 from uav_global_planner.core.status import PlanStatus
 from uav_global_planner.ros import conversions as conv

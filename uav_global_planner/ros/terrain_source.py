@@ -1,6 +1,6 @@
 """The node's terrain: the ``terrain_file`` parameter read into a digital elevation model.
 
-The file is a DEM read by :func:`uav_global_planner.core.dem.load_dem` over the x/y extent of
+The file is a DEM read by :func:`uav_global_planner.core.map.dem.load_dem` over the x/y extent of
 the bounds: a GeoTIFF (``.tif``, ``.tiff``; placed with the ``geodetic_origin`` parameter of
 the map frame when it is set, else its CRS must be projected in metres and is the map frame)
 or an ESRI ASCII grid (``.asc``, in the map frame). An ``.npy`` lattice, which needs an origin
@@ -21,9 +21,9 @@ from typing import Any, Dict, Optional, Tuple
 import numpy as np
 
 from uav_global_planner.core.config import PlannerConfig
-from uav_global_planner.core.dem import load_dem
 from uav_global_planner.core.errors import InvalidInputError
-from uav_global_planner.core.terrain import HeightField
+from uav_global_planner.core.map.dem import load_dem
+from uav_global_planner.core.map.terrain import HeightField
 from uav_global_planner.ros.mission_service import origin_from_value
 
 #: The parameter naming the DEM file.

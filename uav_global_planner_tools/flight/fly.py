@@ -17,7 +17,7 @@ used instead), and nothing else of RotorPy is needed.
 Figures of one flight (:class:`FlightReport`), every control step:
 
 - body clearance: exact distance from the vehicle's centre to the obstacles
-  (:meth:`uav_global_planner.core.obstacles.ObstacleSet.distance`, uncapped) minus the
+  (:meth:`uav_global_planner.core.map.obstacles.ObstacleSet.distance`, uncapped) minus the
   vehicle's radius (arms and rotors). Between two steps (2 ms) the vehicle moves at most
   ``speed * 2 ms`` (16 mm at 8 m/s), so the continuous minimum lies at most half that below
   the sampled one. The ground is not an obstacle.
@@ -40,7 +40,7 @@ from typing import Any, Optional, Protocol
 import numpy as np
 from scipy.spatial import cKDTree
 
-from uav_global_planner.core.obstacles import ObstacleSet
+from uav_global_planner.core.map.obstacles import ObstacleSet
 from uav_global_planner_tools.flight.reference import flat_output, reference_at, trajectory_of
 from uav_global_planner_tools.flight.vehicles import GRAVITY, Vehicle
 

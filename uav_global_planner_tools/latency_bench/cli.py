@@ -10,7 +10,7 @@ import sys
 from typing import List, Optional
 
 from uav_global_planner.core.errors import InvalidInputError
-from uav_global_planner.core.scene import find_scene
+from uav_global_planner.core.io.scene import find_scene
 from uav_global_planner_tools.domains import choose_domain_id
 from uav_global_planner_tools.latency_bench.client import BenchError
 from uav_global_planner_tools.latency_bench.measure import run

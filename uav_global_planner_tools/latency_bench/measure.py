@@ -13,7 +13,7 @@ from typing import Any, Dict, List, Optional, Sequence
 import numpy as np
 
 from uav_global_planner.core.config import ALGORITHMS
-from uav_global_planner.core.scene import find_scene, load_scene
+from uav_global_planner.core.io.scene import find_scene, load_scene
 from uav_global_planner_tools.latency_bench.session import Session
 
 #: Goals per algorithm on the memory scene (latency there is a by-product).

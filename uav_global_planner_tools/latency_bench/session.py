@@ -12,7 +12,7 @@ from typing import Any, Dict, Optional
 
 import numpy as np
 
-from uav_global_planner.core.scene import Scene
+from uav_global_planner.core.io.scene import Scene
 from uav_global_planner.ros import conversions as conv
 from uav_global_planner_tools.latency_bench.client import BenchClient, BenchError
 from uav_global_planner_tools.processes import (find_config, NodeProcess, NodeProcessError,

@@ -34,13 +34,13 @@ from nav_msgs.msg import Odometry, Path as PathMsg
 import numpy as np
 from visualization_msgs.msg import Marker, MarkerArray
 
-from uav_global_planner.core.obstacles import Box, ObstacleSet
-from uav_global_planner.core.scene import find_scene, load_scene, Scene
+from uav_global_planner.core.io.scene import find_scene, load_scene, Scene
+from uav_global_planner.core.map.obstacles import Box, ObstacleSet
 from uav_global_planner.ros import conversions as conv
 from uav_global_planner.ros.background_node import BackgroundNode
 from uav_global_planner.ros.names import NODE_NAME, READY_TEXT as PLANNER_READY
-from uav_global_planner.ros.qos import (COMMAND_QOS, DIAGNOSTICS_QOS, LATCHED_QOS,
-                                        OBSTACLES_QOS, SENSOR_QOS)
+from uav_global_planner.ros.qos import (COMMAND_QOS, DIAGNOSTICS_QOS, LATCHED_QOS, OBSTACLES_QOS,
+                                        SENSOR_QOS)
 from uav_global_planner_tools.domains import choose_domain_id
 from uav_global_planner_tools.flight.vehicles import px4_sih_quadx
 from uav_global_planner_tools.processes import (find_config, localhost_discovery, NodeProcess,

@@ -1,9 +1,10 @@
 """Certified separation between two timed trajectories, in continuous time.
 
-A :class:`Flight` is a plan's exact timed reference (:class:`~uav_global_planner.core.reference.
-TimedReference`: a curve ``c(s)`` parameterised by arc length, flown with a piecewise
-polynomial arc length ``s(t)``) placed at a departure on the batch clock, optionally flown
-slower along the same curve. It is in the airspace from its departure to its arrival.
+A :class:`Flight` is a plan's exact timed reference
+(:class:`~uav_global_planner.core.path.reference.TimedReference`: a curve ``c(s)`` parameterised by
+arc length, flown with a piecewise polynomial arc length ``s(t)``) placed at a departure on the
+batch clock, optionally flown slower along the same curve. It is in the airspace from its departure
+to its arrival.
 
 Two flights conflict when, at one instant of the time both are flying, their horizontal
 distance is below ``horizontal_m`` and their vertical distance below ``vertical_m`` of the

@@ -12,7 +12,7 @@ The required clearance is ``m = gamma + a``: the planner's safety margin plus a 
 allowance ``a`` for what the autopilot adds (cross-track error, overshoot, wind). Keeping ``m``
 along the nominal path means that every point within ``a`` of it keeps ``gamma`` (the obstacle
 distance is 1-Lipschitz). Every yes/no below comes from the clearance engine
-(:func:`~uav_global_planner.core.clearance.certify_segments`), which certifies whole segments,
+(:func:`~uav_global_planner.core.path.clearance.certify_segments`), which certifies whole segments,
 not samples:
 
 * **Legs.** Each straight leg between consecutive mission positions keeps ``m``.
@@ -31,7 +31,7 @@ not samples:
   long, so that ``A`` and ``B`` lie on the legs and neighbouring turn regions do not overlap.
 * **The ground.** Waypoints are at least ``min_height`` (default ``m``) above the bounds' floor;
   legs and turns between points above a plane stay above it. A ground or terrain among the
-  obstacles (:mod:`uav_global_planner.core.ground`: ``ground: floor``, a DEM, and the AGL band
+  obstacles (:mod:`uav_global_planner.core.map.ground`: ``ground: floor``, a DEM, and the AGL band
   above it) is certified like every obstacle, so every leg and turn keeps ``m`` from the
   terrain and stays inside ``[min_agl, max_agl]`` above it; only the take-off climb and a
   landing descent, straight up and down through the ground's margin, are certified against

@@ -12,12 +12,12 @@ from typing import Any, List, Optional, Sequence, Tuple
 
 import numpy as np
 
-from uav_global_planner.core.airspace import Airspace
-from uav_global_planner.core.clearance import certify_segments
 from uav_global_planner.core.config import PlannerConfig
 from uav_global_planner.core.errors import InvalidInputError
-from uav_global_planner.core.geodesy import GeodeticOrigin
-from uav_global_planner.core.ground import ground_height, without_ground
+from uav_global_planner.core.io.geodesy import GeodeticOrigin
+from uav_global_planner.core.map.airspace import Airspace
+from uav_global_planner.core.map.ground import ground_height, without_ground
+from uav_global_planner.core.map.obstacles import ObstacleSet
 from uav_global_planner.core.mission.certify import (certify_triangle, TURN_CELL_INRADIUS,
                                                      turn_triangle)
 from uav_global_planner.core.mission.ends import (check_end_action, end_action_points,
@@ -31,14 +31,13 @@ from uav_global_planner.core.mission.model import (FenceCircle, FencePolygon,
                                                    MAV_FRAME_GLOBAL_RELATIVE_ALT,
                                                    MAV_FRAME_MISSION, Mission, MissionItem,
                                                    SPEED_TYPE_CLIMB, SPEED_TYPE_DESCENT,
-                                                   SPEED_TYPE_GROUND,
-                                                   UncertifiableMissionError)
+                                                   SPEED_TYPE_GROUND, UncertifiableMissionError)
 from uav_global_planner.core.mission.settings import MissionSettings
 from uav_global_planner.core.mission.stored import ROUNDING_SLACK, stored_item, StoredGeo
 from uav_global_planner.core.mission.waypoints import (candidate_points, offset_layers,
                                                        SearchExhausted, WaypointNode,
                                                        WaypointSearch)
-from uav_global_planner.core.obstacles import ObstacleSet
+from uav_global_planner.core.path.clearance import certify_segments
 
 
 def _as_path(value: Any, name: str, allow_empty: bool = False) -> np.ndarray:
@@ -89,7 +88,7 @@ def build_mission(smoothed_path: Any, obstacles: ObstacleSet, config: PlannerCon
         Geofences to write with the mission (not part of the certificate; see
         :mod:`~uav_global_planner.core.mission.fences`).
     airspace : Airspace, optional
-        The fences and zones of the map (:mod:`uav_global_planner.core.airspace`), written as
+        The fences and zones of the map (:mod:`uav_global_planner.core.map.airspace`), written as
         the mission's 2D geofence (:func:`fences_of_airspace`). For the certificate they must be
         in ``obstacles`` as well, as a scene file's ``geofence`` puts them.
 
@@ -223,7 +222,7 @@ def _assemble(nominal: np.ndarray, end_points: np.ndarray, on_ground: bool, geo:
     """Round to the stored values, certify what is stored and make the items.
 
     ``both`` holds the obstacles and those a take-off climb or landing descent is kept from
-    (without the ground, :func:`~uav_global_planner.core.ground.without_ground`).
+    (without the ground, :func:`~uav_global_planner.core.map.ground.without_ground`).
     """
     obstacles, vertical_obstacles = both
     radius = settings.acceptance_radius

@@ -1,7 +1,7 @@
 """Certified turn regions: the turn triangle at a waypoint and the filled-triangle certificate.
 
 Every yes/no goes through the clearance engine
-(:func:`~uav_global_planner.core.clearance.certify_segments`), which certifies whole segments,
+(:func:`~uav_global_planner.core.path.clearance.certify_segments`), which certifies whole segments,
 not samples.
 """
 
@@ -10,8 +10,8 @@ from typing import Tuple
 
 import numpy as np
 
-from uav_global_planner.core.clearance import certify_segments
-from uav_global_planner.core.obstacles import ObstacleSet
+from uav_global_planner.core.map.obstacles import ObstacleSet
+from uav_global_planner.core.path.clearance import certify_segments
 
 #: Largest inradius of the small triangles of a certified turn region [m].
 TURN_CELL_INRADIUS = 0.01

@@ -10,12 +10,12 @@ from typing import List, Optional
 
 import numpy as np
 
-from uav_global_planner.core.clearance import certify_segments
+from uav_global_planner.core.map.obstacles import ObstacleSet
 from uav_global_planner.core.mission.certify import (certify_triangle, TURN_CELL_INRADIUS,
                                                      turn_triangle)
 from uav_global_planner.core.mission.model import UncertifiableMissionError
 from uav_global_planner.core.mission.settings import MissionSettings
-from uav_global_planner.core.obstacles import ObstacleSet
+from uav_global_planner.core.path.clearance import certify_segments
 
 #: Take-off heights tried, the highest clear one first.
 _TAKEOFF_ALTERNATIVES = 4

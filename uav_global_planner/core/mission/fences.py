@@ -2,7 +2,7 @@
 
 Fences
 ------
-The map's airspace (:mod:`uav_global_planner.core.airspace`: inclusion fences, exclusion zones)
+The map's airspace (:mod:`uav_global_planner.core.map.airspace`: inclusion fences, exclusion zones)
 keeps the clearance like any obstacle when it is in the obstacle set, as a scene file's
 ``geofence`` puts it. It is also written as the ``.plan`` ``geoFence`` (WGS84, polygons
 clockwise), with :class:`FencePolygon` and :class:`FenceCircle` given directly: autopilot fences
@@ -16,12 +16,11 @@ from typing import assert_never, List, Sequence, Tuple
 
 import numpy as np
 
-from uav_global_planner.core.airspace import (Airspace, BoxZone, Cylinder, InclusionCircle,
-                                              InclusionFence, Prism)
-from uav_global_planner.core.geodesy import enu_to_geodetic, GeodeticOrigin
+from uav_global_planner.core.io.geodesy import enu_to_geodetic, GeodeticOrigin
+from uav_global_planner.core.map.airspace import (Airspace, BoxZone, Cylinder, InclusionCircle,
+                                                  InclusionFence, Prism)
 from uav_global_planner.core.mission.model import FenceCircle, FencePolygon, GeoFence
-from uav_global_planner.core.mission.stored import (ALTITUDE_DECIMALS, LATLON_DECIMALS,
-                                                    round_stored)
+from uav_global_planner.core.mission.stored import ALTITUDE_DECIMALS, LATLON_DECIMALS, round_stored
 
 
 def _cross(o: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:

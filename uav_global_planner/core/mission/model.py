@@ -7,7 +7,7 @@ from typing import Tuple
 import numpy as np
 
 from uav_global_planner.core.errors import InvalidInputError, PlanningError
-from uav_global_planner.core.geodesy import GeodeticOrigin
+from uav_global_planner.core.io.geodesy import GeodeticOrigin
 from uav_global_planner.core.mission.settings import check_number, MissionSettings
 from uav_global_planner.core.status import PlanStatus
 

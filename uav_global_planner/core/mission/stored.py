@@ -10,7 +10,7 @@ from typing import Tuple
 
 import numpy as np
 
-from uav_global_planner.core.geodesy import enu_to_geodetic, geodetic_to_enu, GeodeticOrigin
+from uav_global_planner.core.io.geodesy import enu_to_geodetic, geodetic_to_enu, GeodeticOrigin
 from uav_global_planner.core.mission.model import MissionItem
 
 #: Decimal places stored: latitude/longitude (MAVLink's 1e-7 deg integers), altitudes, params.

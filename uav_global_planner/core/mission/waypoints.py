@@ -22,10 +22,10 @@ from typing import Iterator, List, Optional, Tuple
 import numpy as np
 from scipy.spatial import cKDTree
 
-from uav_global_planner.core.clearance import certify_segments
+from uav_global_planner.core.map.obstacles import ObstacleSet
 from uav_global_planner.core.mission.certify import (certify_triangle, TURN_CELL_INRADIUS,
                                                      turn_triangle, unit_vector)
-from uav_global_planner.core.obstacles import ObstacleSet
+from uav_global_planner.core.path.clearance import certify_segments
 
 #: Candidates ahead of a waypoint that are all checked at once; beyond, a gallop and bisection.
 _FULL_SCAN = 256

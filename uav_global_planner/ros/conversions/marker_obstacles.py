@@ -10,7 +10,7 @@ from typing import Dict, Mapping, Optional, Tuple
 import numpy as np
 from visualization_msgs.msg import Marker, MarkerArray
 
-from uav_global_planner.core.obstacles import Box, Obstacle, ObstacleSet, PointSet, Sphere
+from uav_global_planner.core.map.obstacles import Box, Obstacle, ObstacleSet, PointSet, Sphere
 from uav_global_planner.ros.conversions.errors import InputRejected
 from uav_global_planner.ros.conversions.poses import (check_frame, point_to_array,
                                                       quaternion_to_array, rotation_matrix)

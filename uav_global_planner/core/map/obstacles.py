@@ -2,13 +2,13 @@
 
 Three shapes: spheres (centre, radius), axis-aligned boxes (min and max corners) and point sets
 (occupied points, for example a point cloud or an octomap's occupied-cell centres). Terrain and
-ground surfaces (:class:`~uav_global_planner.core.terrain.HeightField`, the solid below or above
-a triangulated height field) join as they are, with their own exact distance. Airspace
-zones and fences (:mod:`uav_global_planner.core.airspace`: prisms, cylinders, the outside of an
+ground surfaces (:class:`~uav_global_planner.core.map.terrain.HeightField`, the solid below or
+above a triangulated height field) join as they are, with their own exact distance. Airspace
+zones and fences (:mod:`uav_global_planner.core.map.airspace`: prisms, cylinders, the outside of an
 inclusion fence) join the same shape table, so every distance query covers them. Distances are
 to the obstacle's surface, 0 inside it, in metres. The same distance functions drive the grid
-inflation (:mod:`uav_global_planner.core.inflation`) and the clearance check of smoothed paths, so
-the two can never disagree.
+inflation (:mod:`uav_global_planner.core.map.inflation`) and the clearance check of smoothed paths,
+so the two can never disagree.
 """
 
 from dataclasses import dataclass
@@ -20,11 +20,11 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from uav_global_planner.core.errors import InvalidInputError
-from uav_global_planner.core.grid import as_point
 from uav_global_planner.core.jit import njit
-from uav_global_planner.core.spatial_index import (BOX, BRUTE_FORCE_SHAPES, min_gap_all,
-                                                   ShapeIndex, SPHERE, TableShape)
-from uav_global_planner.core.terrain import HeightField
+from uav_global_planner.core.map.grid import as_point
+from uav_global_planner.core.map.spatial_index import (BOX, BRUTE_FORCE_SHAPES, min_gap_all,
+                                                       ShapeIndex, SPHERE, TableShape)
+from uav_global_planner.core.map.terrain import HeightField
 
 # Smallest reach of a shape lattice [m]: caps below it share one lattice.
 _SMALLEST_REACH = 0.25
@@ -176,7 +176,7 @@ class ObstacleSet:
     """Immutable collection of obstacles with vectorised distance queries.
 
     Spheres, boxes and table shapes (airspace zones and fences) form one shape table
-    (:mod:`uav_global_planner.core.spatial_index`), point sets one KD-tree. A query with a
+    (:mod:`uav_global_planner.core.map.spatial_index`), point sets one KD-tree. A query with a
     ``cap`` looks only at what lies within ``cap`` of each query point (fences, which are
     unbounded, are evaluated exactly for every query), so its cost follows the obstacles near
     the query, not their number. Height fields (terrain, ground, AGL floors and ceilings) are
@@ -185,8 +185,8 @@ class ObstacleSet:
     Parameters
     ----------
     obstacles : iterable of Sphere, Box, PointSet, TableShape or HeightField
-        Table shapes (:class:`~uav_global_planner.core.spatial_index.TableShape`, for example
-        the zones of :mod:`uav_global_planner.core.airspace`) keep their order in
+        Table shapes (:class:`~uav_global_planner.core.map.spatial_index.TableShape`, for example
+        the zones of :mod:`uav_global_planner.core.map.airspace`) keep their order in
         :attr:`zones`; their rows follow the spheres' and boxes' (:attr:`zone_rows`).
     """
 

@@ -168,7 +168,7 @@ class HeightField:
         points : array_like, shape (3,) or (..., 3)
             Query positions [m].
         cap : float
-            As :meth:`~uav_global_planner.core.obstacles.ObstacleSet.distance`: distances at
+            As :meth:`~uav_global_planner.core.map.obstacles.ObstacleSet.distance`: distances at
             or above ``cap`` (> 0) are reported as ``cap``; +inf gives every distance exactly.
 
         Returns

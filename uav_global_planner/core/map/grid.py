@@ -19,7 +19,7 @@ from uav_global_planner.core.errors import InvalidInputError
 HALF_CELL_DIAGONAL = math.sqrt(3.0) / 2.0
 
 #: Default cap on the number of grid nodes; a typo such as ``resolution = 0.001`` fails at once.
-#: From 16 M nodes up the grid is block-sparse (:mod:`uav_global_planner.core.sparse_grid`):
+#: From 16 M nodes up the grid is block-sparse (:mod:`uav_global_planner.core.map.sparse_grid`):
 #: the blocked mask takes 4 bytes per brick of 512 nodes (1/128 byte a node) plus one byte a
 #: node only in the bricks an obstacle's surface crosses, and the search 17 bytes a node only
 #: in the bricks it reaches (24 more per open-list entry). A 1 km x 1 km x 120 m city at

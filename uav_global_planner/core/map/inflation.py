@@ -11,12 +11,12 @@ grid:
   proportional to points x (gamma / delta)^3 however large the grid. Dense clouds, whose
   balls would visit every node several times (a scan at a few centimetres: a dozen points a
   cell), go box by box through the exact distance transform of their cells
-  (:mod:`~uav_global_planner.core.dense_inflation`, time close to linear in the grid), or,
+  (:mod:`~uav_global_planner.core.map.dense_inflation`, time close to linear in the grid), or,
   when gamma spans so many cells that its boxes would be huge, a nearest-point query of every
   node; each box takes the cheapest of the three, all of them exact;
 - a height field (terrain, ground, an AGL floor or ceiling) blocks, in each grid column, the
   nodes below (above) one limit, found by bisection on the terrain's own distance function
-  (:func:`~uav_global_planner.core.terrain.column_limits`): its solid is closed downwards
+  (:func:`~uav_global_planner.core.map.terrain.column_limits`): its solid is closed downwards
   (upwards), so the distance is monotone along a column. In the block-sparse layout the least
   and greatest limits of each 8 x 8 column of bricks file whole bricks full, or leave them
   free, without writing their nodes; only the bricks the limits cross are written.
@@ -25,8 +25,8 @@ The passes are compiled loops (numba, see :mod:`uav_global_planner.core.jit`) th
 into the mask, without temporaries; there is one implementation of each (with
 ``UAV_PLANNER_DISABLE_JIT=1`` the same source runs as plain Python, slowly, for debugging). They
 evaluate the distance with one floating-point formula, the one of
-:mod:`uav_global_planner.core.obstacles` (node coordinate ``min + i * delta``, differences squared
-and summed x, y, z in that order, then the square root), so the masks agree with
+:mod:`uav_global_planner.core.map.obstacles` (node coordinate ``min + i * delta``, differences
+squared and summed x, y, z in that order, then the square root), so the masks agree with
 ``ObstacleSet.distance(node) <= gamma`` to the last bit, ties at exactly gamma included.
 
 One module, though long (about 1200 lines): every stamping kernel (spheres, boxes, points,
@@ -43,18 +43,18 @@ from typing import Callable, Optional, Sequence, Union
 import numpy as np
 from scipy.spatial import cKDTree
 
-from uav_global_planner.core.dense_inflation import (bin_points, bucket, bucket_spans, CellBins,
-                                                     mark_box, transform_cost)
 from uav_global_planner.core.errors import InvalidInputError
-from uav_global_planner.core.grid import VoxelGrid
 from uav_global_planner.core.jit import njit
-from uav_global_planner.core.obstacles import ObstacleSet
-from uav_global_planner.core.sparse_grid import (BRICK, BRICK_BITS, choose_layout, FROM_NODES,
-                                                 KNOWN_FREE, KNOWN_FULL, SparseBuilder,
-                                                 SparseMask)
-from uav_global_planner.core.spatial_index import (_column_part, _finish, shape_bounds,
-                                                   stamp_shapes)
-from uav_global_planner.core.terrain import column_limits
+from uav_global_planner.core.map.dense_inflation import (bin_points, bucket, bucket_spans,
+                                                         CellBins, mark_box, transform_cost)
+from uav_global_planner.core.map.grid import VoxelGrid
+from uav_global_planner.core.map.obstacles import ObstacleSet
+from uav_global_planner.core.map.sparse_grid import (BRICK, BRICK_BITS, choose_layout, FROM_NODES,
+                                                     KNOWN_FREE, KNOWN_FULL, SparseBuilder,
+                                                     SparseMask)
+from uav_global_planner.core.map.spatial_index import (_column_part, _finish, shape_bounds,
+                                                       stamp_shapes)
+from uav_global_planner.core.map.terrain import column_limits
 
 # Largest number of nodes one nearest-point query of the KD-tree handles at once: bounds its
 # temporary memory (about 100 bytes a node) whatever the window's size.
@@ -120,8 +120,8 @@ def blocked_mask(grid: VoxelGrid, obstacles: ObstacleSet, safety_margin: float,
         buffers); implies the dense layout.
     layout : str
         ``'auto'``, ``'dense'`` or ``'sparse'``
-        (:func:`~uav_global_planner.core.sparse_grid.choose_layout`): by default grids from
-        :data:`~uav_global_planner.core.sparse_grid.SPARSE_MIN_NODES` nodes up get the
+        (:func:`~uav_global_planner.core.map.sparse_grid.choose_layout`): by default grids from
+        :data:`~uav_global_planner.core.map.sparse_grid.SPARSE_MIN_NODES` nodes up get the
         block-sparse mask. Both layouts block the same nodes, to the bit.
     checkpoint : callable, optional
         :data:`Checkpoint`, called between pieces of the build (windows, boxes, chunks of
@@ -239,7 +239,7 @@ def reinflate_tiles(grid: VoxelGrid, obstacles: ObstacleSet, safety_margin: floa
 def _sparse_mask(grid: VoxelGrid, obstacles: ObstacleSet, gamma: float,
                  checkpoint: Checkpoint = None) -> SparseMask:
     """The block-sparse mask, window by window (module notes of
-    :mod:`~uav_global_planner.core.sparse_grid`).
+    :mod:`~uav_global_planner.core.map.sparse_grid`).
 
     The grid is cut into windows of :data:`_WINDOW` nodes a side; each obstacle is listed under
     the windows its reach (the very index ranges of the dense passes) meets, and only windows
@@ -395,7 +395,7 @@ class _SparseWork:
     def _build_window(self, window: int, scratch: np.ndarray):
         """One window of a full build (the box [first, last] is the whole grid): the dense
         block, its first node and the states of its bricks
-        (:meth:`~uav_global_planner.core.sparse_grid.SparseBuilder.pack`).
+        (:meth:`~uav_global_planner.core.map.sparse_grid.SparseBuilder.pack`).
 
         The height fields decide most bricks from their brick columns' least and greatest
         limits alone: a brick under (over) every limit of a side-``'below'`` (``'above'``)
@@ -474,7 +474,7 @@ def _mark_terrain(grid: VoxelGrid, obstacles: ObstacleSet, gamma: float, block: 
     the window ``block`` of the grid from node ``base`` on, in place (``checkpoint`` between
     pieces of the work).
 
-    Each column's limit comes from :func:`~uav_global_planner.core.terrain.column_limits`,
+    Each column's limit comes from :func:`~uav_global_planner.core.map.terrain.column_limits`,
     which decides every node it tests with the terrain's own distance function, so the mask
     agrees with ``ObstacleSet.distance`` to the bit.
     """
@@ -494,7 +494,7 @@ def _mark_terrain(grid: VoxelGrid, obstacles: ObstacleSet, gamma: float, block: 
 @njit
 def _fill_columns(block, base, first, last, limits, below):  # pragma: no cover - compiled
     """Block, in each column of the node box [first, last], the nodes under its limit
-    (``below``) or from it on (:func:`~uav_global_planner.core.terrain.column_limits`), within
+    (``below``) or from it on (:func:`~uav_global_planner.core.map.terrain.column_limits`), within
     the window ``block`` of the grid from node ``base`` on."""
     i0 = max(first[0], base[0])
     i1 = min(last[0], base[0] + block.shape[0] - 1)
@@ -679,7 +679,7 @@ def _bucket_ranges(ranges: np.ndarray, windows: np.ndarray):
 @njit
 def _stamp_shapes_in(blocked, base, origin, delta, ranges, rows, items, kind, prm, verts,
                      vstart, gamma):  # pragma: no cover - compiled
-    """:func:`~uav_global_planner.core.spatial_index.stamp_shapes` on the window ``blocked`` of
+    """:func:`~uav_global_planner.core.map.spatial_index.stamp_shapes` on the window ``blocked`` of
     the grid from node ``base`` on, for the table rows ``rows[items]`` (their index ranges
     ``ranges[items]``); the very same per-node test."""
     for n in range(items.shape[0]):
@@ -909,7 +909,7 @@ def _points_in_box(block: np.ndarray, base: np.ndarray, grid: VoxelGrid, bins: C
     whose cell lies within the halo of the box), on the window ``block`` of the grid from node
     ``base`` on, by the cheapest exact pass, costs counted in compiled visits: stamping each
     point's ball, the distance transform of the cells
-    (:func:`~uav_global_planner.core.dense_inflation.mark_box`: :data:`_CELL_COST` a cell,
+    (:func:`~uav_global_planner.core.map.dense_inflation.mark_box`: :data:`_CELL_COST` a cell,
     and it gives up when its shell would cost more than the others), or a nearest-point query
     of each node (:data:`_VISITS_PER_NODE_COMPILED` a node).
     """

@@ -16,7 +16,7 @@ The pieces
     queries (what the clearance engine asks) read the cells within the cap; wider and uncapped
     ones search outward over coarser blocks of cells, skipping empty space.
 :class:`LiveObstacles`
-    An :class:`~uav_global_planner.core.obstacles.ObstacleSet` of shapes (markers) plus point
+    An :class:`~uav_global_planner.core.map.obstacles.ObstacleSet` of shapes (markers) plus point
     layers (the newest cloud, a static prior map), each point layer indexed once: a marker
     update keeps the cloud's index, a cloud update the prior's.
 :class:`MaskBuffers`
@@ -24,8 +24,8 @@ The pieces
     written, so a plan always runs on one consistent map (double buffering; a third buffer lets
     a new map be written while the newest one waits to be picked up). A buffer is brought up to
     date by re-inflating only the tiles changed since it was last written
-    (:func:`~uav_global_planner.core.inflation.reinflate_tiles`), which gives the mask of a full
-    rebuild to the bit.
+    (:func:`~uav_global_planner.core.map.inflation.reinflate_tiles`), which gives the mask of a
+    full rebuild to the bit.
 :class:`LiveMapBuilder`
     Applies marker and cloud updates and produces :class:`LiveMap` objects: obstacles, their
     inflated mask and what the update cost.
@@ -55,14 +55,14 @@ from scipy import ndimage
 
 from uav_global_planner.core.config import PlannerConfig
 from uav_global_planner.core.errors import InvalidInputError
-from uav_global_planner.core.grid import VoxelGrid
-from uav_global_planner.core.inflation import (blocked_mask, Mask, reinflate_sparse,
-                                               reinflate_tiles)
 from uav_global_planner.core.jit import njit
-from uav_global_planner.core.obstacles import Box, Obstacle, ObstacleSet, PointSet, Sphere
+from uav_global_planner.core.map.grid import VoxelGrid
+from uav_global_planner.core.map.inflation import (blocked_mask, Mask, reinflate_sparse,
+                                                   reinflate_tiles)
+from uav_global_planner.core.map.obstacles import Box, Obstacle, ObstacleSet, PointSet, Sphere
+from uav_global_planner.core.map.sparse_grid import choose_layout, SparseMask
+from uav_global_planner.core.map.terrain import HeightField
 from uav_global_planner.core.planner import fallback_margin
-from uav_global_planner.core.sparse_grid import choose_layout, SparseMask
-from uav_global_planner.core.terrain import HeightField
 
 #: Aimed-at cell edge [m]: about the distance cap of the clearance engine's queries (gamma plus
 #: a metre), so a query reads a few cells per axis, and small enough that a local change

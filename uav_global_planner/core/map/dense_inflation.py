@@ -1,6 +1,6 @@
 """Inflation of dense point sets in time close to linear in the grid.
 
-Stamping each point's ball of radius gamma (:mod:`uav_global_planner.core.inflation`) costs
+Stamping each point's ball of radius gamma (:mod:`uav_global_planner.core.map.inflation`) costs
 points x (gamma / delta)^3 node visits. A dense scan, such as a room scanned at 2 cm (a million
 points, a dozen or more per grid cell), makes that billions of visits, most of them on nodes
 that many other balls block too. This pass works on the grid's cells instead:

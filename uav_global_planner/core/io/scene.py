@@ -15,7 +15,7 @@ Format (every key below is required except ``description``, ``frame_id`` and ``o
       - {type: points, points: [[0.0, 0.0, 1.0], [0.1, 0.0, 1.0]]}
       - {type: points_file, path: maps/site.las, downsample: 0.2}   # downsample optional
     geodetic_origin: {lat: 47.3977, lon: 8.5456, alt_amsl: 488.0}   # optional: WGS84 of x=y=z=0
-    geofence:                                   # optional, see core/airspace.py
+    geofence:                                   # optional, see core/map/airspace.py
       inclusion: {polygon: [[x, y], ...], floor: 0.0, ceiling: 120.0}
       exclusion:
         - {type: prism, polygon: [[x, y], ...], floor: 0.0, ceiling: 60.0}
@@ -23,11 +23,11 @@ Format (every key below is required except ``description``, ``frame_id`` and ``o
         - {type: box, min: [x, y, z], max: [x, y, z]}
     cost: {climb_weight: 1.0, descent_weight: 1.0}   # optional, the energy-aware step cost
     known_volume: [{min: [x, y, z], max: [x, y, z]}]  # optional: outside them is unknown
-    unknown_space: occupied  # optional: occupied (default), free or cost; core/unknown_space.py
-    vehicle: {mass: 1.5, hover_power: 180.0}         # optional [kg], [W], see core/energy.py
+    unknown_space: occupied  # optional: occupied (default), free or cost; core/map/unknown_space.py
+    vehicle: {mass: 1.5, hover_power: 180.0}         # optional [kg], [W], see core/path/energy.py
     planner: {smoothing: chord, max_speed_horizontal: 2.0}   # optional, any key listed below
-    ground: floor            # optional: none (default), floor or a height [m]; core/ground.py
-    terrain: {file: dem.tif}  # optional DEM (.tif, .asc; .npy with origin, spacing); core/dem.py
+    ground: floor            # optional: none (default), floor or a height [m]; core/map/ground.py
+    terrain: {file: dem.tif}  # optional DEM (.tif, .asc; .npy with origin, spacing); core/map/dem.py
     min_agl: 10.0            # optional height band above the ground [m], 0 = off
     max_agl: 120.0
 
@@ -38,7 +38,7 @@ give, and where, is the ``scene_key`` of each entry of the settings table
 sample_spacing, index_step, start_tolerance and the four speed and acceleration limits. Each is
 checked by the table, so a scene accepts exactly what the node and ``uav-plan`` accept. A
 ``points_file`` path is resolved against the scene file's folder; its formats and margins
-are those of :mod:`uav_global_planner.core.mapfiles`. A map's margin (OctoMap cells,
+are those of :mod:`uav_global_planner.core.io.mapfiles`. A map's margin (OctoMap cells,
 downsampling: every occupied location lies within it of a point) is added to the safety margin,
 so the planner keeps gamma from what the file describes; :attr:`Scene.map_margin_m` says how
 much was added.
@@ -57,19 +57,19 @@ from typing import Any, Dict, List, Mapping, Optional, Set, Tuple, Union
 import numpy as np
 import yaml
 
-from uav_global_planner.core.airspace import Airspace, parse_geofence
 from uav_global_planner.core.config import PlannerConfig, validate_config
-from uav_global_planner.core.dem import load_dem, parse_terrain
-from uav_global_planner.core.energy import VehicleModel
 from uav_global_planner.core.errors import InvalidInputError
-from uav_global_planner.core.geodesy import GeodeticOrigin
-from uav_global_planner.core.ground import ground_obstacles
-from uav_global_planner.core.mapfiles import load_map_points, MapReport
-from uav_global_planner.core.obstacles import Box, Obstacle, ObstacleSet, PointSet, Sphere
+from uav_global_planner.core.io.geodesy import GeodeticOrigin
+from uav_global_planner.core.io.mapfiles import load_map_points, MapReport
+from uav_global_planner.core.io.text_files import parse_text_file
+from uav_global_planner.core.map.airspace import Airspace, parse_geofence
+from uav_global_planner.core.map.dem import load_dem, parse_terrain
+from uav_global_planner.core.map.ground import ground_obstacles
+from uav_global_planner.core.map.obstacles import Box, Obstacle, ObstacleSet, PointSet, Sphere
+from uav_global_planner.core.map.terrain import HeightField
+from uav_global_planner.core.map.unknown_space import scene_unknown, UnknownSpace
+from uav_global_planner.core.path.energy import VehicleModel
 from uav_global_planner.core.settings import planner_settings, Setting
-from uav_global_planner.core.terrain import HeightField
-from uav_global_planner.core.text_files import parse_text_file
-from uav_global_planner.core.unknown_space import scene_unknown, UnknownSpace
 
 # Top-level keys that are scene data, not settings; the settings' keys come from the table.
 _DATA_KEYS = ('description', 'frame_id', 'start', 'goal', 'obstacles', 'geodetic_origin', 'via',
@@ -82,7 +82,7 @@ _OPTIONAL_OBSTACLE_KEYS = {'points_file': ('downsample',)}
 _YAML_LOADER = getattr(yaml, 'CSafeLoader', yaml.SafeLoader)
 
 #: The shipped configuration (planner.yaml, scenes/) in a source checkout, beside the package.
-_SOURCE_CONFIG = Path(__file__).resolve().parents[2] / 'config'
+_SOURCE_CONFIG = Path(__file__).resolve().parents[3] / 'config'
 
 
 @dataclass(frozen=True, eq=False)
@@ -114,16 +114,16 @@ class Scene:
     vehicle : VehicleModel
         The ``vehicle`` key's mass and hover power, for energy estimates.
     terrain : HeightField or None
-        The ``terrain`` key's DEM over the bounds (:mod:`uav_global_planner.core.dem`).
+        The ``terrain`` key's DEM over the bounds (:mod:`uav_global_planner.core.map.dem`).
     ground : tuple of HeightField
         The ground (the terrain, or the flat ground of ``config.ground``), the AGL floor and
-        the AGL ceiling (:func:`uav_global_planner.core.ground.ground_obstacles`), already in
+        the AGL ceiling (:func:`uav_global_planner.core.map.ground.ground_obstacles`), already in
         ``obstacles``.
     map_reports : tuple of MapReport
         What each map file (``points_file`` obstacles, in order) read, dropped and kept.
     unknown : UnknownSpace or None
         Space the scene's OctoMap files never observed and space outside its
-        ``known_volume`` boxes (:mod:`uav_global_planner.core.unknown_space`), within the
+        ``known_volume`` boxes (:mod:`uav_global_planner.core.map.unknown_space`), within the
         bounds; None when it declares neither. What the planner does with it is
         ``config.unknown_space``.
     """
@@ -309,7 +309,7 @@ def parse_scene(data: Any, name: str = 'scene', base: PlannerConfig = PlannerCon
         :class:`PlannerConfig` fields that replace the scene's own (command-line options), applied
         before validation, so an override can lift a cap the scene's values exceed.
     terrain_file : str or Path, optional
-        A DEM (GeoTIFF or ``.asc``, :mod:`uav_global_planner.core.dem`) that replaces the
+        A DEM (GeoTIFF or ``.asc``, :mod:`uav_global_planner.core.map.dem`) that replaces the
         scene's ``terrain`` key (``uav-plan --terrain``); refusals start with ``--terrain``.
 
     Raises
@@ -398,7 +398,7 @@ def _terrain(value: Any, config: PlannerConfig, origin: Optional[GeodeticOrigin]
 
 def with_ground(scene: Scene, terrain: Optional[HeightField] = None) -> Scene:
     """``scene`` with its ground, AGL floor and AGL ceiling made again from its config and
-    ``terrain`` (:func:`uav_global_planner.core.ground.ground_obstacles`), replacing its own:
+    ``terrain`` (:func:`uav_global_planner.core.map.ground.ground_obstacles`), replacing its own:
     after a change of the planning margin or of the terrain.
 
     Parameters

@@ -59,8 +59,8 @@ from typing import Callable, Dict, Iterable, List, Optional, Sequence, Tuple, Un
 import numpy as np
 
 from uav_global_planner.core.errors import InvalidInputError, MissingDependencyError
-from uav_global_planner.core.grid import HALF_CELL_DIAGONAL
-from uav_global_planner.core.obstacles import ObstacleSet, PointSet
+from uav_global_planner.core.map.grid import HALF_CELL_DIAGONAL
+from uav_global_planner.core.map.obstacles import ObstacleSet, PointSet
 
 PathLike = Union[str, Path]
 

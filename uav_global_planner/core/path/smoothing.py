@@ -3,7 +3,7 @@
 The search returns a chain of grid nodes, each with obstacle clearance > gamma. This module turns
 it into a curve a quadcopter can fly, in three steps:
 
-1. **Shortcutting** (:mod:`~uav_global_planner.core.shortcut`): from each kept node, jump to
+1. **Shortcutting** (:mod:`~uav_global_planner.core.path.shortcut`): from each kept node, jump to
    the farthest later node whose straight segment is certified to keep clearance >= gamma.
    Where not even the next node is visible (the raw edge dips below gamma, see below), a detour
    vertex pushed off the obstacle is inserted if its two segments certify. The result is the
@@ -13,7 +13,7 @@ it into a curve a quadcopter can fly, in three steps:
    ``'chord'`` mode extra knots are placed on the polyline segments, at most ``knot_spacing``
    (default max(2 delta, 1 m)) apart, so the spline hugs the certified polyline and rounds its
    corners; a spline through a few far-apart vertices bulges out (longer and less safe).
-3. **Verification and repair** (:mod:`~uav_global_planner.core.repair`): the clearance of the
+3. **Verification and repair** (:mod:`~uav_global_planner.core.path.repair`): the clearance of the
    *whole continuous curve* is certified (see below). Each knot interval that breaks the margin (or
    leaves ``bounds``) gets more knots, taken on the polyline, and the spline is fitted again; when
    a violating interval is shorter than delta / 4, its polyline segment is used straight instead
@@ -25,7 +25,7 @@ it into a curve a quadcopter can fly, in three steps:
    :class:`~uav_global_planner.core.errors.NoValidPathError` is raised instead, with the reason.
 
 This module assembles the accepted curve into a :class:`SmoothedPath` (samples, tangents,
-curvatures, stop points, the :class:`~uav_global_planner.core.curve.PathCurve` evaluator);
+curvatures, stop points, the :class:`~uav_global_planner.core.path.curve.PathCurve` evaluator);
 :func:`smooth_path` is the entry point.
 
 Parameterisations
@@ -79,8 +79,8 @@ Corners
 Where the repair falls back to a polyline, the curve is only C0 at the polyline corners and where
 a polyline stretch meets a spline stretch. Those samples are listed in
 :attr:`SmoothedPath.stop_points` (with the start and the goal) and the time parameterisation
-(:mod:`uav_global_planner.core.timing`) brings the speed to 0 there. Everywhere else the curve is
-C2 (as a function of arc length too, since its speed never vanishes in practice).
+(:mod:`uav_global_planner.core.path.timing`) brings the speed to 0 there. Everywhere else the curve
+is C2 (as a function of arc length too, since its speed never vanishes in practice).
 
 An optional ``bounds`` box (for example the grid bounds, whose floor is the ground) is enforced
 exactly as well: the extrema of each cubic piece are found analytically.
@@ -102,8 +102,8 @@ time parameterisation supplies the speed). Three things change:
   ``c'(0) = v T`` and ``c''(0) = v**2 K`` (v the parameter speed of its first knot interval: 1 in
   ``'chord'`` mode), and ends not-a-knot. Those are three conditions at the start, one more than
   a cubic spline has room for, so its first knot after the start is not interpolated but placed
-  where the conditions put it (:func:`~uav_global_planner.core.repair.start_spline`); the curve
-  stays C2 there and everywhere else it was.
+  where the conditions put it (:func:`~uav_global_planner.core.path.repair.start_spline`); the
+  curve stays C2 there and everywhere else it was.
 - **No stop at the start.** The start is left out of :attr:`SmoothedPath.stop_points`.
 
 The result is certified and repaired as any curve. When the repair has to straighten the first
@@ -119,23 +119,22 @@ from typing import Callable, List, NamedTuple, Optional, Sequence, Tuple
 
 import numpy as np
 
-from uav_global_planner.core.clearance import (certificate_cap, check_margins,
-                                               FINEST_SPACING_FRACTION, Pieces, SEGMENT_SPACING,
-                                               segments_clear)
-from uav_global_planner.core.curve import (arc_derivatives, arc_length_at, interval_maxima,
-                                           PathCurve, span_samples)
 from uav_global_planner.core.errors import InvalidInputError, NoValidPathError
-from uav_global_planner.core.grid import as_point, positive_number
-from uav_global_planner.core.obstacles import ObstacleSet
-from uav_global_planner.core.repair import (BOUNDS_TOLERANCE, Chain, Check,
-                                            DEFAULT_KNOT_SPACING_FACTOR,
-                                            DEFAULT_KNOT_SPACING_MIN, initial_layout, Layout,
-                                            MIN_KNOT_GAP_FRACTION,
-                                            repair_curve, RepairEvent)
+from uav_global_planner.core.map.grid import as_point, positive_number
+from uav_global_planner.core.map.obstacles import ObstacleSet
+from uav_global_planner.core.path.clearance import (certificate_cap, check_margins,
+                                                    FINEST_SPACING_FRACTION, Pieces,
+                                                    SEGMENT_SPACING, segments_clear)
+from uav_global_planner.core.path.curve import (arc_derivatives, arc_length_at, interval_maxima,
+                                                PathCurve, span_samples)
+from uav_global_planner.core.path.repair import (BOUNDS_TOLERANCE, Chain, Check,
+                                                 DEFAULT_KNOT_SPACING_FACTOR,
+                                                 DEFAULT_KNOT_SPACING_MIN, initial_layout, Layout,
+                                                 MIN_KNOT_GAP_FRACTION, repair_curve, RepairEvent)
+from uav_global_planner.core.path.shortcut import (as_waypoints, dedupe_waypoints, kept_indices,
+                                                   shortcut_legs, vertex_indices)
 from uav_global_planner.core.result import polyline_length, RepairedStretch, RepairMethod
 from uav_global_planner.core.settings import check_setting
-from uav_global_planner.core.shortcut import (as_waypoints, dedupe_waypoints, kept_indices,
-                                              shortcut_legs, vertex_indices)
 
 #: Largest turn of the start's osculating circle the lead-in follows [rad].
 LEAD_IN_MAX_TURN = math.pi / 2.0
@@ -254,7 +253,7 @@ def smooth_path(raw_path, obstacles: ObstacleSet, safety_margin: float, resoluti
     resolution : float
         Grid spacing delta [m], > 0: verification samples are <= delta / 20 apart.
     shortcut : bool
-        Shortcut the path first (:func:`~uav_global_planner.core.shortcut.shortcut_path`).
+        Shortcut the path first (:func:`~uav_global_planner.core.path.shortcut.shortcut_path`).
     mode : str
         ``'chord'``, ``'index'`` or ``'none'`` (see the module docstring).
     sample_spacing : float
@@ -263,8 +262,8 @@ def smooth_path(raw_path, obstacles: ObstacleSet, safety_margin: float, resoluti
         Output parameter step of the ``'index'`` spline per knot interval [-], in (0, 1].
     knot_spacing : float, optional
         Largest knot spacing along the shortcut polyline for ``'chord'`` [m], > 0; defaults to
-        the larger of :data:`~uav_global_planner.core.repair.DEFAULT_KNOT_SPACING_FACTOR` *
-        delta and :data:`~uav_global_planner.core.repair.DEFAULT_KNOT_SPACING_MIN`. Sets how
+        the larger of :data:`~uav_global_planner.core.path.repair.DEFAULT_KNOT_SPACING_FACTOR` *
+        delta and :data:`~uav_global_planner.core.path.repair.DEFAULT_KNOT_SPACING_MIN`. Sets how
         widely corners are rounded.
     bounds : tuple of two array_like of shape (3,), optional
         Box ``(min, max)`` [m] the curve must stay inside (for example the grid bounds, whose

@@ -7,12 +7,12 @@ first, by at most one tolerance (the setting ``start_tolerance`` [m]), so the no
 ``uav-plan`` plan from the same point and say the same words:
 
 - **The ground.** A point below the floor (the bounds' lower face) or below the ground or
-  terrain (the :class:`~uav_global_planner.core.terrain.HeightField` obstacles whose solid lies
+  terrain (the :class:`~uav_global_planner.core.map.terrain.HeightField` obstacles whose solid lies
   below their surface), by at most the tolerance, or above them but within the safety margin of
   them, is lifted straight up to the lowest height that is free. The vertical leg from the
   point to there is the take-off leg of a start (the landing leg of a goal): it must keep the
   planning margin from every obstacle other than those height fields, which the exact segment
-  certificate of :func:`~uav_global_planner.core.clearance.certify_segments` proves; otherwise
+  certificate of :func:`~uav_global_planner.core.path.clearance.certify_segments` proves; otherwise
   the point is refused.
 - **Any other obstacle, and the bounds' sides and top** (starts only): a start outside the
   bounds or within the safety margin of another obstacle by at most the tolerance is moved to
@@ -37,13 +37,13 @@ import weakref
 
 import numpy as np
 
-from uav_global_planner.core.clearance import certify_segments
-from uav_global_planner.core.grid import VoxelGrid
-from uav_global_planner.core.inflation import Mask
-from uav_global_planner.core.obstacles import Obstacle, ObstacleSet
+from uav_global_planner.core.map.grid import VoxelGrid
+from uav_global_planner.core.map.inflation import Mask
+from uav_global_planner.core.map.obstacles import Obstacle, ObstacleSet
+from uav_global_planner.core.map.terrain import HeightField
+from uav_global_planner.core.path.clearance import certify_segments
 from uav_global_planner.core.result import PlanResult
 from uav_global_planner.core.status import PlanStatus
-from uav_global_planner.core.terrain import HeightField
 
 __all__ = ['Admission', 'admit', 'explain', 'FREE_ROOM_CELLS', 'is_free', 'nearest_free_node',
            'START', 'GOAL']

@@ -38,7 +38,7 @@ Two ways to ask:
   unbounded (their outside reaches infinity): they are not in the lattice but on an *always*
   list that every query evaluates exactly (one polygon each).
 
-A lower bound is all a clearance certificate needs (:mod:`uav_global_planner.core.clearance`):
+A lower bound is all a clearance certificate needs (:mod:`uav_global_planner.core.path.clearance`):
 for a segment ``ab``, ``d(q) >= (d'(a) + d'(b) - |ab|) / 2`` holds for any ``d' <= d``, because
 ``d`` itself is 1-Lipschitz.
 """
@@ -81,9 +81,9 @@ _NO_VERTICES.setflags(write=False)
 class TableShape:
     """Base of shapes that are one row of the shape table (zones and fences).
 
-    Subclasses provide :meth:`table_row`; :class:`~uav_global_planner.core.obstacles.ObstacleSet`
-    puts them in its table, and every distance query, the grid inflation and the clearance
-    certificate then cover them.
+    Subclasses provide :meth:`table_row`;
+    :class:`~uav_global_planner.core.map.obstacles.ObstacleSet` puts them in its table, and
+    every distance query, the grid inflation and the clearance certificate then cover them.
     """
 
     #: What a message calls the shape, e.g. ``'exclusion zone 2 (cylinder)'``.
@@ -177,7 +177,7 @@ def _gap(kind, prm, verts, vstart, s, x, y, z):  # pragma: no cover - compiled
     """Gap from (x, y, z) to shape ``s`` [m]: negative inside a sphere, 0 inside the others.
 
     The squares are summed in numpy's order over the last axis, so the values of spheres and
-    boxes equal those of :func:`uav_global_planner.core.obstacles.sphere_distance` and
+    boxes equal those of :func:`uav_global_planner.core.map.obstacles.sphere_distance` and
     ``box_distance`` to the bit.
     """
     return _finish(kind, prm, s, _column_part(kind, prm, verts, vstart, s, x, y), z)

@@ -3,13 +3,13 @@
 The reference flies the certified curve itself (path-velocity decomposition), so its clearance
 is the curve's certificate. Only the arc length in time, ``s(t)``, is chosen here, in three
 steps; the reference and its derivatives are those of
-:mod:`uav_global_planner.core.reference`.
+:mod:`uav_global_planner.core.path.reference`.
 
 1. **Bounds per interval.** Between two samples of the curve (interval ``i``), with ``T_c``,
    ``K_c`` the largest horizontal (``c = h``) and vertical (``c = z``) components of the unit
    tangent and of the curvature vector, ``|K|`` and ``|K'|`` the largest norms of the curvature
    vector and of its arc-length derivative, and ``A_c`` the acceleration box that also keeps
-   tilt and thrust (:mod:`uav_global_planner.core.motion_limits`), the interval gets a speed
+   tilt and thrust (:mod:`uav_global_planner.core.path.motion_limits`), the interval gets a speed
    cap ``w_i``, a tangential acceleration bound ``alpha_i`` and a tangential jerk allowance
    ``zeta_i`` such that, for every speed ``v <= w_i``, ``|s_tt| <= alpha_i`` and
    ``|s_ttt| <= zeta_i``::
@@ -23,7 +23,7 @@ steps; the reference and its derivatives are those of
    term leaves :data:`TANGENTIAL_RESERVE` of ``A_c``; in a bend the jerk terms first lower
    ``alpha_i`` (down to :data:`MIN_ALPHA_SHARE` of itself), then ``w_i``, and always leave
    ``zeta_i >= alpha_i J / max(alpha)``. A user's speed cap (the vehicle's tracking room near
-   obstacles, :mod:`uav_global_planner.core.tracking`) lowers ``w_i`` first.
+   obstacles, :mod:`uav_global_planner.core.path.tracking`) lowers ``w_i`` first.
 
 2. **A profile with piecewise constant acceleration** ``s0(t)``. For a window ``tau``, every
    interval takes the smallest ``alpha`` of the intervals that reach it within ``tau w`` and
@@ -49,7 +49,7 @@ From a moving state (speed ``v`` along the start tangent and tangential accelera
 ``s0`` gets a history over ``[-tau, 0]`` (acceleration ``alpha`` long enough to rise by
 ``a tau``, then a constant speed) whose mean speed is ``v``: then ``s_t(0) = v`` and
 ``s_tt(0) = a`` exactly; the start tangent and curvature of the curve
-(:func:`uav_global_planner.core.smoothing.smooth_path`) carry the rest of the velocity and
+(:func:`uav_global_planner.core.path.smoothing.smooth_path`) carry the rest of the velocity and
 acceleration. When the vehicle cannot brake for the new curve from that state, or is faster
 than its caps, the speed is lowered to the largest that fits, and
 :attr:`TimingResult.start_speed` says so.
@@ -65,11 +65,11 @@ from typing import List, Optional, Tuple
 
 import numpy as np
 
-from uav_global_planner.core.motion_limits import MotionLimits
-from uav_global_planner.core.reference import ArcProfile, profile_from_pieces, TimedReference
+from uav_global_planner.core.path.motion_limits import MotionLimits
+from uav_global_planner.core.path.reference import ArcProfile, profile_from_pieces, TimedReference
+from uav_global_planner.core.path.smoothing import SmoothedPath
+from uav_global_planner.core.path.yaw import yaw_profile, YawProfile
 from uav_global_planner.core.result import Trajectory
-from uav_global_planner.core.smoothing import SmoothedPath
-from uav_global_planner.core.yaw import yaw_profile, YawProfile
 
 #: Share of an acceleration limit kept for tangential acceleration where the centripetal
 #: term takes the rest, and the smallest share of its tangential acceleration bound that a
@@ -161,7 +161,7 @@ def time_parameterize(smoothed: SmoothedPath, limits: MotionLimits = MotionLimit
         Largest speed at each sample of ``smoothed`` [m/s], > 0 (an interval takes the
         smaller of its ends').
     yaw_mode : str
-        ``'velocity'``, ``'fixed'`` or ``'goal'`` (:mod:`uav_global_planner.core.yaw`).
+        ``'velocity'``, ``'fixed'`` or ``'goal'`` (:mod:`uav_global_planner.core.path.yaw`).
     initial_yaw : float, optional
         Heading at the start [rad] (ENU).
 

@@ -2,8 +2,8 @@
 
 From the settings ``ground``, ``min_agl`` and ``max_agl``
 (:class:`~uav_global_planner.core.config.PlannerConfig`) and an optional terrain (a
-:class:`~uav_global_planner.core.terrain.HeightField` read by
-:mod:`uav_global_planner.core.dem`), :func:`ground_obstacles` makes the height fields the
+:class:`~uav_global_planner.core.map.terrain.HeightField` read by
+:mod:`uav_global_planner.core.map.dem`), :func:`ground_obstacles` makes the height fields the
 planner keeps its margin ``m`` (:attr:`PlannerConfig.planning_margin`) from, like every other
 obstacle:
 
@@ -29,8 +29,8 @@ import numpy as np
 
 from uav_global_planner.core.config import PlannerConfig
 from uav_global_planner.core.errors import InvalidInputError
-from uav_global_planner.core.obstacles import ObstacleSet
-from uav_global_planner.core.terrain import flat_ground, HeightField
+from uav_global_planner.core.map.obstacles import ObstacleSet
+from uav_global_planner.core.map.terrain import flat_ground, HeightField
 
 #: Labels of the height fields :func:`ground_obstacles` makes.
 GROUND_LABELS = ('terrain', 'ground', 'min_agl', 'max_agl')

@@ -76,7 +76,7 @@ above):
 Unknown-space cost
 ------------------
 With a mask of the nodes that lie in unknown space (space the map never observed, see
-:mod:`uav_global_planner.core.unknown_space`) and a rate ``c >= 0`` [m per m], a step also
+:mod:`uav_global_planner.core.map.unknown_space`) and a rate ``c >= 0`` [m per m], a step also
 costs ``c`` times its length for each of its two end nodes in unknown space, halved::
 
     c_u(d) = c(d) + c * |d| * delta * (u(a) + u(b)) / 2,
@@ -106,12 +106,13 @@ from typing import Callable, Dict, List, Optional, Tuple, Union
 
 import numpy as np
 
-from uav_global_planner.core.errors import (GoalOccupiedError, InvalidInputError,
-                                            NoValidPathError, PlanningError,
-                                            PlanningTimeoutError, StartOccupiedError)
+from uav_global_planner.core.errors import (GoalOccupiedError, InvalidInputError, NoValidPathError,
+                                            PlanningError, PlanningTimeoutError,
+                                            StartOccupiedError)
 from uav_global_planner.core.jit import njit
+from uav_global_planner.core.map.sparse_grid import (BRICK, BRICK_BITS, BRICK_NODES, FULL,
+                                                     SparseMask)
 from uav_global_planner.core.settings import check_setting
-from uav_global_planner.core.sparse_grid import BRICK, BRICK_BITS, BRICK_NODES, FULL, SparseMask
 
 _H_ZERO = 0
 _H_EUCLIDEAN = 1
@@ -571,7 +572,7 @@ class SearchWorkspace:
     here and reused by every :meth:`search`; expect the per-node arrays to be fully resident
     after a few queries (about 105 MB at 6.1 million nodes).
 
-    On a block-sparse mask (:class:`~uav_global_planner.core.sparse_grid.SparseMask`) the same
+    On a block-sparse mask (:class:`~uav_global_planner.core.map.sparse_grid.SparseMask`) the same
     17-byte records live in bricks of 8 x 8 x 8 nodes, given a slot of a pool when a search
     first reaches the brick; each query starts with an empty brick table (4 bytes a brick) and
     reuses the pool, which, like the heap (24 bytes an entry there), doubles when a search needs

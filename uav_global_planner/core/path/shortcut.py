@@ -1,8 +1,8 @@
 """Line-of-sight shortcutting of a grid-node path, every kept segment certified.
 
-The first step of :mod:`uav_global_planner.core.smoothing`: from each kept node, jump to a far
+The first step of :mod:`uav_global_planner.core.path.smoothing`: from each kept node, jump to a far
 later node whose straight segment is certified (by
-:func:`~uav_global_planner.core.clearance.segments_clear`, on the whole segment, not only at
+:func:`~uav_global_planner.core.path.clearance.segments_clear`, on the whole segment, not only at
 samples) to keep clearance >= gamma. Where not even the next node is visible (the raw edge dips
 below gamma, by less than ``delta * sqrt(3) / 2``), a detour vertex pushed off the obstacle is
 inserted if its two segments certify. The result is the *shortcut polyline* the spline follows.
@@ -16,11 +16,12 @@ from typing import Callable, List, Optional, Sequence, Tuple
 
 import numpy as np
 
-from uav_global_planner.core.clearance import (certificate_cap, check_margins,
-                                               CHECK_SPACING_FRACTION, FINEST_SPACING_FRACTION,
-                                               SEGMENT_SPACING, segments_clear)
 from uav_global_planner.core.errors import InvalidInputError
-from uav_global_planner.core.obstacles import ObstacleSet
+from uav_global_planner.core.map.obstacles import ObstacleSet
+from uav_global_planner.core.path.clearance import (certificate_cap, check_margins,
+                                                    CHECK_SPACING_FRACTION,
+                                                    FINEST_SPACING_FRACTION, SEGMENT_SPACING,
+                                                    segments_clear)
 
 #: First sampling of shortcut candidate segments [m] (the engine's segment spacing).
 SHORTCUT_SPACING = SEGMENT_SPACING

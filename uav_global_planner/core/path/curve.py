@@ -1,7 +1,7 @@
 """The smoothed curve as a function of arc length, and its output samples.
 
 :class:`PathCurve` is the accepted chain of cubic pieces (splines and straight segments) that
-:mod:`uav_global_planner.core.smoothing` returns, evaluated by arc length. The functions below
+:mod:`uav_global_planner.core.path.smoothing` returns, evaluated by arc length. The functions below
 place the output samples on it (by arc length, or by knot parameter in ``'index'`` mode), give
 arc lengths of points on it, and the unit tangents and curvature vectors (derivatives with
 respect to arc length) at them.
@@ -13,8 +13,8 @@ from typing import List, Tuple
 import numpy as np
 from scipy.interpolate import PPoly
 
-from uav_global_planner.core.clearance import Pieces, SampleGrid
-from uav_global_planner.core.repair import Chain
+from uav_global_planner.core.path.clearance import Pieces, SampleGrid
+from uav_global_planner.core.path.repair import Chain
 
 # Output samples closer than this to a via-point are dropped in its favour [m].
 _VIA_SAMPLE_GAP = 1e-6

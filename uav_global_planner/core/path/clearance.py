@@ -37,7 +37,7 @@ from typing import Callable, Optional, Tuple
 import numpy as np
 
 from uav_global_planner.core.errors import InvalidInputError
-from uav_global_planner.core.obstacles import ObstacleSet
+from uav_global_planner.core.map.obstacles import ObstacleSet
 
 #: Coarsest verification sampling of curves, as a fraction of delta (delta / 20).
 CHECK_SPACING_FRACTION = 1.0 / 20.0

@@ -11,12 +11,12 @@ one int32 per brick says what each brick is:
 
 So the mask costs 4 bytes a brick (1/128 byte a node) plus 512 bytes per brick that an
 obstacle's surface crosses. The search keeps its per-node state in bricks of the same layout,
-allocated when a search first reaches them (:mod:`uav_global_planner.core.search`).
+allocated when a search first reaches them (:mod:`uav_global_planner.core.search.grid_search`).
 
 :func:`choose_layout` is the one rule that picks this layout or the dense one (a numpy bool
 array of the grid's shape): dense below :data:`SPARSE_MIN_NODES` nodes, where it is slightly
 faster and its memory is small anyway, block-sparse from there on. Both give the same blocked
-nodes to the bit (:mod:`uav_global_planner.core.inflation` writes both with the same kernels)
+nodes to the bit (:mod:`uav_global_planner.core.map.inflation` writes both with the same kernels)
 and the search gives the same paths on both.
 """
 

@@ -4,9 +4,9 @@ The vehicle must stay inside the *inclusion fence* (a polygon in x-y with a floo
 ceiling, or a circle) and outside every *exclusion zone*: vertical prisms (polygon, floor,
 ceiling), vertical cylinders (centre, radius, floor, ceiling) and axis-aligned boxes. Without an
 inclusion fence the planning bounds are the fence. Every zone and fence is a row of the shape
-table of :mod:`uav_global_planner.core.spatial_index`, with an exact distance (to a zone's
+table of :mod:`uav_global_planner.core.map.spatial_index`, with an exact distance (to a zone's
 solid, 0 inside it; to the *outside* of a fence, 0 outside it): put them into the
-:class:`~uav_global_planner.core.obstacles.ObstacleSet` (:meth:`Airspace.with_obstacles`) and
+:class:`~uav_global_planner.core.map.obstacles.ObstacleSet` (:meth:`Airspace.with_obstacles`) and
 the grid inflation and every clearance certificate keep gamma from fence walls as from
 obstacles. Several inclusion fences are all enforced (the vehicle stays inside each of them),
 which is the reading that satisfies both PX4 (inside at least one) and ArduPilot (inside all).
@@ -28,7 +28,7 @@ Where fences come from
   An inclusion may also be a circle, ``{center: [x, y], radius: r, floor, ceiling}``.
 * A QGroundControl ``.plan`` file (:func:`load_qgc_plan`): its ``geoFence`` polygons and circles
   (each with its ``inclusion`` flag) in WGS84, placed in the map frame from its geodetic origin
-  (:mod:`uav_global_planner.core.geodesy`, pymap3d). ``.plan`` fences are 2D: the floor and
+  (:mod:`uav_global_planner.core.io.geodesy`, pymap3d). ``.plan`` fences are 2D: the floor and
   ceiling of the inclusion fences are given separately, exclusion zones reach every altitude
   unless limits are given.
 * :func:`load_geofence` reads either, by the file's suffix.
@@ -54,12 +54,12 @@ import numpy as np
 from uav_global_planner.core.errors import (GoalOccupiedError, GoalOutsideMapError,
                                             InvalidInputError, StartOccupiedError,
                                             StartOutsideMapError)
-from uav_global_planner.core.geodesy import geodetic_to_enu, GeodeticOrigin
-from uav_global_planner.core.grid import finite_point
-from uav_global_planner.core.obstacles import ObstacleSet
-from uav_global_planner.core.spatial_index import (BOX, CIRCLE_FENCE, CYLINDER, FENCE, PRISM,
-                                                   row_gaps, TableShape, UNBOUNDED_KINDS)
-from uav_global_planner.core.text_files import parse_text_file
+from uav_global_planner.core.io.geodesy import geodetic_to_enu, GeodeticOrigin
+from uav_global_planner.core.io.text_files import parse_text_file
+from uav_global_planner.core.map.grid import finite_point
+from uav_global_planner.core.map.obstacles import ObstacleSet
+from uav_global_planner.core.map.spatial_index import (BOX, CIRCLE_FENCE, CYLINDER, FENCE, PRISM,
+                                                       row_gaps, TableShape, UNBOUNDED_KINDS)
 
 #: Most vertices of one polygon: validation compares every pair of edges.
 MAX_POLYGON_VERTICES = 4096

@@ -1,6 +1,6 @@
 """Digital elevation models (DEM): terrain heights read from a file into a height field.
 
-A DEM becomes a :class:`~uav_global_planner.core.terrain.HeightField` in the map frame (ENU:
+A DEM becomes a :class:`~uav_global_planner.core.map.terrain.HeightField` in the map frame (ENU:
 x east, y north, z up [m]) whose lattice covers the x/y extent of the planning bounds. Three
 formats are read:
 
@@ -12,14 +12,14 @@ GeoTIFF (``.tif``, ``.tiff``)
     *With a geodetic origin* (the scene's ``geodetic_origin``), the DEM is resampled onto a
     regular ENU lattice over the bounds, at a spacing no larger than the DEM's own (the bounds'
     extent divided into whole cells): every lattice node ``(x, y)`` is converted to latitude and
-    longitude with :mod:`uav_global_planner.core.geodesy` (pymap3d), then to the DEM's CRS with
+    longitude with :mod:`uav_global_planner.core.io.geodesy` (pymap3d), then to the DEM's CRS with
     ``rasterio.warp.transform``, and the elevation there is interpolated bilinearly between the
     four surrounding pixel centres. The height in the map frame is ``z = elevation - h0(x, y)``,
     with ``h0(x, y)`` the altitude of the map point ``(x, y, 0)``: the origin's ``alt_amsl``
     plus the drop of the ellipsoid below the tangent plane (``r**2 / (2 R)``, 8 cm at 1 km), so
     a mission written from the map frame puts every point at its planned height above the DEM.
     Elevations are taken as AMSL, as SRTM, Copernicus and national DEMs give them (see the
-    notes on AMSL in :mod:`~uav_global_planner.core.geodesy`).
+    notes on AMSL in :mod:`~uav_global_planner.core.io.geodesy`).
 
     *Without a geodetic origin*, the raster's CRS must be projected in metres (UTM, a national
     grid) and the map frame is that CRS: map x, y are its easting and northing, z the elevation.
@@ -51,8 +51,8 @@ from typing import Any, Dict, Optional, Sequence, Tuple, Union
 import numpy as np
 
 from uav_global_planner.core.errors import InvalidInputError, MissingDependencyError
-from uav_global_planner.core.geodesy import enu_to_geodetic, GeodeticOrigin
-from uav_global_planner.core.terrain import HeightField
+from uav_global_planner.core.io.geodesy import enu_to_geodetic, GeodeticOrigin
+from uav_global_planner.core.map.terrain import HeightField
 
 #: File suffixes read as DEMs, by format.
 GEOTIFF_SUFFIXES = ('.tif', '.tiff')

@@ -1,13 +1,13 @@
 """Fitting the spline over the shortcut polyline, certifying it, and repairing it until it holds.
 
-The third step of :mod:`uav_global_planner.core.smoothing`. The curve is described by a
+The third step of :mod:`uav_global_planner.core.path.smoothing`. The curve is described by a
 :class:`Layout` over the shortcut polyline: knots named by their polyline arc length sigma, and
 for each polyline gap whether the spline covers it or it is drawn straight. :func:`build_chain`
 fits one C2 not-a-knot :class:`~scipy.interpolate.CubicSpline` per run of spline gaps and one
 straight piece per straight gap (the run at the start of a curve that continues a motion is
 clamped to the given tangent and curvature instead, :func:`start_spline`);
 :func:`check_chain` certifies the clearance of every piece
-(:func:`~uav_global_planner.core.clearance.certify_pieces`) and checks the bounds box exactly.
+(:func:`~uav_global_planner.core.path.clearance.certify_pieces`) and checks the bounds box exactly.
 :func:`repair_curve` repeats both, adding polyline knots to each violating piece (or, for a
 piece shorter than ``delta / 4``, drawing its polyline gap straight) until no piece violates.
 """
@@ -19,11 +19,11 @@ from typing import Any, Callable, Dict, List, NamedTuple, Optional, Tuple
 import numpy as np
 from scipy.interpolate import CubicSpline, PPoly
 
-from uav_global_planner.core.clearance import (Certificate, certificate_cap, certify_pieces,
-                                               Pieces, SampleGrid)
 from uav_global_planner.core.errors import NoValidPathError
-from uav_global_planner.core.grid import HALF_CELL_DIAGONAL
-from uav_global_planner.core.obstacles import ObstacleSet
+from uav_global_planner.core.map.grid import HALF_CELL_DIAGONAL
+from uav_global_planner.core.map.obstacles import ObstacleSet
+from uav_global_planner.core.path.clearance import (Certificate, certificate_cap, certify_pieces,
+                                                    Pieces, SampleGrid)
 from uav_global_planner.core.result import RepairMethod
 
 #: Default largest knot spacing of ``'chord'`` splines along the shortcut polyline: this many

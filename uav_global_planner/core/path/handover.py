@@ -8,8 +8,8 @@ them without a jump when
   ``K = (a - (a . T) T) / |v|^2`` (the normal part of the acceleration is ``|v|^2 K``), and
 - its timing starts with speed ``|v|`` and tangential acceleration ``a . T``
 
-(:mod:`uav_global_planner.core.smoothing` and :mod:`uav_global_planner.core.timing` keep one
-each). :class:`Handover` turns the state into both and measures what the plan kept.
+(:mod:`uav_global_planner.core.path.smoothing` and :mod:`uav_global_planner.core.path.timing` keep
+one each). :class:`Handover` turns the state into both and measures what the plan kept.
 """
 
 from dataclasses import dataclass
@@ -19,10 +19,10 @@ from typing import Any, Optional, Tuple
 import numpy as np
 
 from uav_global_planner.core.errors import InvalidInputError
-from uav_global_planner.core.motion_limits import MotionLimits
+from uav_global_planner.core.path.motion_limits import MotionLimits
+from uav_global_planner.core.path.smoothing import SmoothedPath
+from uav_global_planner.core.path.timing import MIN_ALPHA_SHARE, StartMotion
 from uav_global_planner.core.result import Trajectory
-from uav_global_planner.core.smoothing import SmoothedPath
-from uav_global_planner.core.timing import MIN_ALPHA_SHARE, StartMotion
 
 #: Below this speed a start counts as at rest [m/s].
 HANDOVER_MIN_SPEED = 0.05
@@ -121,12 +121,12 @@ class Handover:
                                                          Optional[np.ndarray], Optional[float],
                                                          Optional[np.ndarray]]:
         """``start_tangent``, ``start_curvature``, ``start_lead_in`` [m] and
-        ``start_lead_in_path`` of :func:`~uav_global_planner.core.smoothing.smooth_path`; all
+        ``start_lead_in_path`` of :func:`~uav_global_planner.core.path.smoothing.smooth_path`; all
         None from rest.
 
         The lead-in (the curve follows the start's osculating circle that far) is about the
         distance to brake from the vehicle's speed with the tangential acceleration a bend
-        leaves, plus two averaging windows of travel (:mod:`uav_global_planner.core.timing`),
+        leaves, plus two averaging windows of travel (:mod:`uav_global_planner.core.path.timing`),
         so the new curve's first turn does not force the reference to start slower.
         """
         if not self.moving:

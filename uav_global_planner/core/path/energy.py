@@ -26,7 +26,8 @@ Its limits, said plainly:
   (``P_h ~ (m g)^1.5 / sqrt(2 rho A)`` by momentum theory).
 
 Use it to compare plans of one vehicle with each other (the climb term is what the energy-aware
-cost, :mod:`uav_global_planner.core.search`, trades against distance), not as a battery budget.
+cost, :mod:`uav_global_planner.core.search.grid_search`, trades against distance), not as a
+battery budget.
 """
 
 from dataclasses import dataclass

@@ -23,7 +23,8 @@ What the planner does with unknown space is the setting ``unknown_space``
 space nobody has seen; the boxes join the obstacles as :class:`~.obstacles.Box` items, so the
 grid, the clearance certificate and every check keep the safety margin from them), ``free``
 (flown through) or ``cost`` (flown through at ``unknown_cost`` extra per metre: the search
-charges its steps between grid nodes in unknown space, see :mod:`uav_global_planner.core.search`,
+charges its steps between grid nodes in unknown space, see
+:mod:`uav_global_planner.core.search.grid_search`,
 and the curve follows the searched path's nodes where shortcuts would fly more unknown space
 than it). Every plan reports the arc length of its smoothed curve inside the boxes
 (:meth:`UnknownSpace.length_inside`).
@@ -39,9 +40,9 @@ from typing import Any, Iterable, List, Optional, Sequence, Tuple, Union
 import numpy as np
 
 from uav_global_planner.core.errors import InvalidInputError, MissingDependencyError
-from uav_global_planner.core.grid import as_point
 from uav_global_planner.core.jit import njit
-from uav_global_planner.core.obstacles import Box, ObstacleSet
+from uav_global_planner.core.map.grid import as_point
+from uav_global_planner.core.map.obstacles import Box, ObstacleSet
 
 PathLike = Union[str, Path]
 
@@ -93,7 +94,7 @@ class UnknownSpace:
         return float(np.sum(np.prod(self.maxs - self.mins, axis=1)))
 
     def boxes(self) -> List[Box]:
-        """The boxes as :class:`~uav_global_planner.core.obstacles.Box` obstacles."""
+        """The boxes as :class:`~uav_global_planner.core.map.obstacles.Box` obstacles."""
         # Checked once here (finite, min < max): a Box's own checks cost about 40 us each,
         # seconds for the 10^5 boxes of a large scan.
         made = []

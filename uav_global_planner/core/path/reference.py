@@ -11,7 +11,7 @@ its derivative ``K' = c'''`` (derivatives by arc length)::
 
 :class:`ArcProfile` is a moving average, over a window of ``tau`` seconds, of a profile
 ``s0(t)`` with piecewise constant acceleration (the construction is in
-:mod:`uav_global_planner.core.timing`)::
+:mod:`uav_global_planner.core.path.timing`)::
 
     s(t) = (1 / tau) * integral of s0 over [t - tau, t]
 
@@ -27,9 +27,9 @@ from typing import Tuple
 import numpy as np
 from scipy.interpolate import PPoly
 
-from uav_global_planner.core.curve import PathCurve
+from uav_global_planner.core.path.curve import PathCurve
+from uav_global_planner.core.path.yaw import YawProfile
 from uav_global_planner.core.result import ReferenceState
-from uav_global_planner.core.yaw import YawProfile
 
 
 @dataclass(frozen=True, eq=False)

@@ -23,7 +23,7 @@ cover on its own. A vehicle whose controller tracks worse needs the benchmark's 
 import numpy as np
 
 from uav_global_planner.core.config import PlannerConfig
-from uav_global_planner.core.obstacles import ObstacleSet
+from uav_global_planner.core.map.obstacles import ObstacleSet
 
 #: Tracking error of the model at hover [m].
 TRACKING_ERROR_AT_REST = 0.08
