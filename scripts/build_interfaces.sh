@@ -36,13 +36,15 @@ for tool in cmake cc c++; do
   command -v "$tool" >/dev/null 2>&1 || fail "$tool not found: install cmake, gcc and g++"
 done
 
-# What a package's build depends on: its interface files, this script, and the pins of the ROS
+# What a package's build depends on: its interface files, the shared cmake code of interfaces/,
+# this script, and the pins of the ROS
 # wheels (generators, message packages), catkin-pkg and numpy (whose headers the Python bindings
 # use). Other pins do not trigger a rebuild.
 fingerprint() {
   local package_dir="$1"
   {
     (cd "$package_dir" && find . -type f -print0 | LC_ALL=C sort -z | xargs -0 sha256sum)
+    (cd "$repo_root/interfaces/cmake" && find . -type f -print0 | LC_ALL=C sort -z | xargs -0 sha256sum)
     sha256sum < "${BASH_SOURCE[0]}"
     grep -E '^(ros-|catkin-pkg|numpy)' "$repo_root/requirements.txt"
     cat "$venv/pyvenv.cfg"

@@ -43,7 +43,7 @@ from uav_global_planner_tools import processes
 from uav_global_planner_tools.domains import (candidate_domains, domain_in_use,
                                               environment_domain_id, SAFE_DOMAIN_IDS)
 from uav_global_planner_tools.processes import (localhost_discovery, NodeProcess,  # noqa: F401
-                                                NodeProcessError, ros_environment)
+                                                NodeProcessError, ros_environment, wait_until)
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 PLANNER_YAML = REPO_ROOT / 'config' / 'planner.yaml'
@@ -128,24 +128,6 @@ def assert_clean_exit(node: NodeProcess, code: int) -> None:
 # --------------------------------------------------------------------------------------------
 # The test side of the conversation
 # --------------------------------------------------------------------------------------------
-
-def wait_until(predicate: Callable[[], Any], timeout_s: float, what: str,
-               period_s: float = 0.02) -> Any:
-    """Poll ``predicate`` until it returns something truthy; return that.
-
-    Raises
-    ------
-    AssertionError
-        After ``timeout_s``, naming ``what``.
-    """
-    deadline = time.monotonic() + timeout_s
-    while True:
-        value = predicate()
-        if value:
-            return value
-        if time.monotonic() > deadline:
-            raise AssertionError(f'timed out after {timeout_s} s waiting for {what}')
-        time.sleep(period_s)
 
 
 class Recorder:

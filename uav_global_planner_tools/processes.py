@@ -9,7 +9,8 @@
 - :func:`planner_command` and :func:`scene_publisher_command` build the command lines, with
   :func:`scene_parameters` giving the node a scene's workspace;
 - :class:`NodeProcess` runs the child with its output read line by line on a thread, waits for
-  a line (the node's ready line :data:`READY_TEXT` above all) and stops it with SIGINT.
+  a line (the node's ready line :data:`READY_TEXT` above all) and stops it with SIGINT;
+- :func:`wait_until` polls for what a process should have done.
 
 Nothing here imports rclpy: the processes do.
 """
@@ -22,7 +23,7 @@ import sys
 import tempfile
 import threading
 import time
-from typing import Any, Dict, List, Mapping, Optional, Sequence
+from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence
 
 from uav_global_planner.core.io.scene import Scene, shipped_config_dirs
 from uav_global_planner.ros.names import NODE_MODULE, READY_TEXT, SCENE_PUBLISHER_MODULE
@@ -303,3 +304,45 @@ class NodeProcess:
             self.process.kill()
             self.process.wait()
         self._reader.join(5.0)
+
+
+class WaitTimeout(AssertionError, TimeoutError):
+    """What :func:`wait_until` raises: a test's failed expectation and a timeout at once."""
+
+
+def wait_until(predicate: Callable[[], Any], timeout_s: float, what: str,
+               period_s: float = 0.02) -> Any:
+    """Poll ``predicate`` until it returns something truthy; return that.
+
+    ``predicate`` is asked once more after the deadline, so a value that arrived while the
+    poller slept is not lost on a loaded machine.
+
+    Parameters
+    ----------
+    predicate : callable
+        Returns the value waited for, or something falsy while there is none.
+    timeout_s : float
+        Longest wait on the monotonic clock [s].
+    what : str
+        What is waited for, for the message.
+    period_s : float
+        Poll period [s].
+
+    Raises
+    ------
+    WaitTimeout
+        After ``timeout_s``, naming ``what`` and the wall-clock span waited.
+    """
+    started_wall = time.time()
+    deadline = time.monotonic() + timeout_s
+    while True:
+        value = predicate()
+        if value:
+            return value
+        if time.monotonic() > deadline:
+            value = predicate()
+            if value:
+                return value
+            raise WaitTimeout(f'timed out after {timeout_s:g} s waiting for {what} (wall clock '
+                              f'{started_wall:.3f} to {time.time():.3f})')
+        time.sleep(period_s)

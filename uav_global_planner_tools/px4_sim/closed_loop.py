@@ -45,7 +45,8 @@ from uav_global_planner_tools.domains import choose_domain_id
 from uav_global_planner_tools.flight.vehicles import px4_sih_quadx
 from uav_global_planner_tools.processes import (find_config, localhost_discovery, NodeProcess,
                                                 planner_command, ros_environment,
-                                                scene_parameters, scene_publisher_command)
+                                                scene_parameters, scene_publisher_command,
+                                                wait_until)
 from uav_global_planner_tools.px4_sim import dds_vehicle, mavlink_vehicle
 from uav_global_planner_tools.px4_sim.track import (first_hold_setpoint, odometry_rate,
                                                     read_track, Track, TrackTail)
@@ -201,24 +202,6 @@ class _Client:
         self.background.close()
 
 
-def _wait(predicate, timeout_s: float, what: str, period_s: float = 0.05):
-    """Poll ``predicate`` until it returns something truthy (returned), for ``timeout_s`` of the
-    monotonic clock; the timeout names ``what`` and the wall-clock span waited."""
-    started_wall = time.time()
-    deadline = time.monotonic() + timeout_s
-    while True:
-        value = predicate()
-        if value:
-            return value
-        if time.monotonic() > deadline:
-            value = predicate()      # the last chance, after the deadline
-            if value:
-                return value
-            raise TimeoutError(f'timed out after {timeout_s:g} s waiting for {what} (wall '
-                               f'clock {started_wall:.3f} to {time.time():.3f})')
-        time.sleep(period_s)
-
-
 def _box_marker(center: np.ndarray, edge: float, frame_id: str) -> MarkerArray:
     marker = Marker()
     marker.header.frame_id = frame_id
@@ -325,7 +308,7 @@ def _fly(settings: ClosedLoopSettings, scene: Scene, client: _Client, track_path
     """Goal, drop, arrival; fills the report's timings."""
     goal = np.asarray(settings.goal, dtype=np.float64)
     # The planner starts from the vehicle: the goal goes out once the follower feeds odometry.
-    _wait(client.odometry_seen.is_set, 30.0, 'odometry from the follower on /odom')
+    wait_until(client.odometry_seen.is_set, 30.0, 'odometry from the follower on /odom')
     goal_sent = report.goal_time = time.time()
     here = np.asarray(settings.start, dtype=np.float64)
 
@@ -345,7 +328,8 @@ def _fly(settings: ClosedLoopSettings, scene: Scene, client: _Client, track_path
         sent = time.time()
         client.goal_pub.publish(conv.pose_stamped(goal.tolist(), scene.frame_id, 0))
         try:
-            plan = _wait(lambda: plan_from_here(sent), 2.0, 'a plan from the vehicle to the goal')
+            plan = wait_until(lambda: plan_from_here(sent), 2.0,
+                              'a plan from the vehicle to the goal')
         except TimeoutError:
             if time.monotonic() > deadline:
                 raise
@@ -369,8 +353,8 @@ def _fly(settings: ClosedLoopSettings, scene: Scene, client: _Client, track_path
         return float(arc[nearest])
 
     if settings.box_edge > 0.0:
-        _wait(lambda: flown() >= settings.drop_after_m, 60.0,
-              f'the vehicle {settings.drop_after_m:g} m along the plan', 0.1)
+        wait_until(lambda: flown() >= settings.drop_after_m, 60.0,
+                   f'the vehicle {settings.drop_after_m:g} m along the plan', 0.1)
         follow_newest()          # the plan in force now (the planner may have replanned)
         along = min(flown() + settings.box_ahead_m, arc[-1] - 3.0)
         center = np.array([np.interp(along, arc, points[:, i]) for i in range(3)])
@@ -378,13 +362,13 @@ def _fly(settings: ClosedLoopSettings, scene: Scene, client: _Client, track_path
         drop = report.drop_time = time.time()
         client.obstacle_pub.publish(_box_marker(center, settings.box_edge, scene.frame_id))
         report.notes.append(f'box dropped at {center.round(2).tolist()} ({along:.1f} m along)')
-        withdrawn = _wait(lambda: client.events('plan_withdrawn', drop), 10.0,
-                          'the withdrawal of the plan in force')
+        withdrawn = wait_until(lambda: client.events('plan_withdrawn', drop), 10.0,
+                               'the withdrawal of the plan in force')
         report.withdrawn = True
         report.withdrawal_latency_s = withdrawn[0][0] - drop
-        replaced = _wait(lambda: next((d for d in client.events('plan', drop)
-                                       if d[1].get('status') == 'ok'), None), 30.0,
-                         'the replacement plan')
+        replaced = wait_until(lambda: next((d for d in client.events('plan', drop)
+                                            if d[1].get('status') == 'ok'), None), 30.0,
+                              'the replacement plan')
         report.replaced = replaced is not None
 
     def arrived() -> bool:
@@ -395,7 +379,7 @@ def _fly(settings: ClosedLoopSettings, scene: Scene, client: _Client, track_path
                     and np.linalg.norm(tail.velocity) < 0.3)
 
     try:
-        _wait(arrived, settings.timeout_s, 'the vehicle at the goal', 0.1)
+        wait_until(arrived, settings.timeout_s, 'the vehicle at the goal', 0.1)
     except TimeoutError as error:
         where = None if tail.position is None else tail.position.round(2).tolist()
         raise TimeoutError(f'{error}; the vehicle was last at {where}') from None
