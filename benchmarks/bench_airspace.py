@@ -31,7 +31,8 @@ from typing import Any, Dict, List
 import numpy as np
 
 from uav_global_planner.core.io.scene import find_scene, load_scene, Scene
-from uav_global_planner.core.map.airspace import Airspace, Cylinder, InclusionFence, Prism
+from uav_global_planner.core.map.airspace import Airspace
+from uav_global_planner.core.map.zones import Cylinder, InclusionFence, Prism
 from uav_global_planner.core.path.energy import estimate_energy
 from uav_global_planner.core.planner import Planner
 

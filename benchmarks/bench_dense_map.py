@@ -38,7 +38,7 @@ import numpy as np
 import octomap
 
 from uav_global_planner.core.io.mapfiles import load_map_points
-from uav_global_planner.core.map import inflation
+from uav_global_planner.core.map import inflation, point_inflation, stamping
 from uav_global_planner.core.map.grid import VoxelGrid
 from uav_global_planner.core.map.obstacles import ObstacleSet, PointSet
 
@@ -123,12 +123,13 @@ def old_pass(grid: VoxelGrid, points: np.ndarray, gamma: float) -> np.ndarray:
     """The point pass of the previous release: stamping, or a KD-tree query of every node
     once the balls visit more than 300 nodes per grid node."""
     blocked = np.zeros(grid.shape, dtype=bool)
-    relevant = inflation._relevant_points(grid, points, gamma)
-    if inflation._ball_visits(grid, len(relevant), gamma) > 300.0 * grid.size:
-        inflation._mark_by_nearest_point(grid, relevant, gamma, blocked)
+    relevant = point_inflation.relevant_points(grid, points, gamma)
+    if point_inflation.ball_visits(grid, len(relevant), gamma) > 300.0 * grid.size:
+        point_inflation.mark_by_nearest_point_in(grid, relevant, gamma, blocked,
+                                                 np.zeros(3, np.int64))
     else:
-        inflation._stamp_points(blocked, np.asarray(grid.bounds_min), grid.resolution,
-                                inflation._in_memory_order(grid, relevant), gamma)
+        stamping.stamp_points(blocked, np.asarray(grid.bounds_min), grid.resolution,
+                              point_inflation.in_memory_order(grid, relevant), gamma)
     return blocked
 
 

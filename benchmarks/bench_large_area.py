@@ -45,9 +45,10 @@ import numpy as np
 from uav_global_planner.core.config import PlannerConfig
 from uav_global_planner.core.io.mapfiles import load_map_points
 from uav_global_planner.core.map.grid import VoxelGrid
-from uav_global_planner.core.map.inflation import blocked_mask, reinflate_sparse
+from uav_global_planner.core.map.inflation import blocked_mask
 from uav_global_planner.core.map.obstacles import Box, ObstacleSet, PointSet
 from uav_global_planner.core.map.sparse_grid import SparseMask
+from uav_global_planner.core.map.sparse_inflation import reinflate_sparse
 from uav_global_planner.core.planner import Planner
 from uav_global_planner.core.search.grid_search import SearchWorkspace
 from uav_global_planner_tools.outdoor_scenes import city1km_boxes, spheres_boxes_100m, town400

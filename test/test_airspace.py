@@ -30,15 +30,17 @@ from uav_global_planner.core.config import PlannerConfig
 from uav_global_planner.core.errors import (GoalOccupiedError, GoalOutsideMapError,
                                             InvalidInputError, StartOccupiedError)
 from uav_global_planner.core.io.geodesy import GeodeticOrigin
+from uav_global_planner.core.io.geofence import load_geofence, load_qgc_plan, parse_geofence
 from uav_global_planner.core.io.scene import find_scene, load_scene, parse_scene
-from uav_global_planner.core.map.airspace import (Airspace, BoxZone, check_endpoint,
-                                                  checked_polygon, Cylinder, InclusionCircle,
-                                                  InclusionFence, load_geofence, load_qgc_plan,
-                                                  parse_geofence, Prism, zone_containing)
+from uav_global_planner.core.map.airspace import Airspace
 from uav_global_planner.core.map.grid import VoxelGrid
 from uav_global_planner.core.map.inflation import blocked_mask
 from uav_global_planner.core.map.obstacles import Box, ObstacleSet, Sphere
+from uav_global_planner.core.map.polygons import checked_polygon
 from uav_global_planner.core.map.spatial_index import ShapeIndex
+from uav_global_planner.core.map.zone_checks import check_endpoint, zone_containing
+from uav_global_planner.core.map.zones import (BoxZone, Cylinder, InclusionCircle, InclusionFence,
+                                               Prism)
 from uav_global_planner.core.planner import Planner
 from uav_global_planner.core.status import PlanStatus
 
@@ -264,7 +266,7 @@ def test_inflation_blocks_exactly_the_nodes_within_gamma_of_a_zone(gamma):
 
 _FALLBACK_SCRIPT = """
 import json, numpy as np
-from uav_global_planner.core.map.airspace import Cylinder, InclusionFence, Prism
+from uav_global_planner.core.map.zones import Cylinder, InclusionFence, Prism
 from uav_global_planner.core.map.grid import VoxelGrid
 from uav_global_planner.core.map.inflation import blocked_mask
 from uav_global_planner.core.jit import JIT_ENABLED

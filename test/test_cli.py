@@ -69,7 +69,7 @@ def test_compare_json_has_one_row_per_algorithm():
     assert run.returncode == 0, run.stderr
     table = json.loads(run.stdout)
     rows = {row['algorithm']: row for row in table['rows']}
-    assert set(rows) == {'dijkstra', 'astar', 'adaptive', 'octile', 'weighted'}
+    assert set(rows) == {'dijkstra', 'astar', 'adaptive', 'octile', 'weighted', 'bounded'}
     optimum = rows['dijkstra']['path_length_m']
     # Weighted A* keeps its bound (default w = 1.05) on the grid path's cost.
     assert optimum <= rows['weighted']['path_length_m'] <= 1.05 * optimum + 1e-9

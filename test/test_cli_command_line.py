@@ -228,7 +228,7 @@ def test_every_option_has_help_and_shows_its_default(command):
 def test_algorithm_shows_its_choices_explained_and_its_default():
     entry = _option_entries(_help('plan'))['--algorithm']
     assert 'default adaptive' in entry
-    for name in ('dijkstra', 'astar', 'adaptive', 'octile', 'weighted'):
+    for name in ('dijkstra', 'astar', 'adaptive', 'octile', 'weighted', 'bounded'):
         assert f'{name} (' in entry, (name, entry)
 
 

@@ -23,7 +23,7 @@ def test_defaults_are_the_papers_values():
     ({'safety_margin': -0.1}, r'safety_margin must be in \[0.0'),
     ({'adaptive_threshold': 'far'}, 'adaptive_threshold must be a number'),
     ({'algorithm': 'bfs'},
-     'algorithm must be one of dijkstra, astar, adaptive, octile, weighted, got'),
+     'algorithm must be one of dijkstra, astar, adaptive, octile, weighted, bounded, got'),
     ({'smoothing': 'bezier'}, 'smoothing must be one of chord, index, none'),
     ({'max_expansions': -1}, 'max_expansions must be >= 0'),
     ({'max_expansions': 2.5}, 'max_expansions must be an integer'),

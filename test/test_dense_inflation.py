@@ -15,10 +15,11 @@ from uav_global_planner.core.budget import PlanBudget, PlanStage
 from uav_global_planner.core.config import PlannerConfig
 from uav_global_planner.core.errors import PlanningTimeoutError
 from uav_global_planner.core.map import dense_inflation
-from uav_global_planner.core.map import inflation
+from uav_global_planner.core.map import point_inflation, stamping
 from uav_global_planner.core.map.grid import VoxelGrid
-from uav_global_planner.core.map.inflation import blocked_mask, reinflate_sparse, reinflate_tiles
+from uav_global_planner.core.map.inflation import blocked_mask, reinflate_tiles
 from uav_global_planner.core.map.obstacles import ObstacleSet, PointSet
+from uav_global_planner.core.map.sparse_inflation import reinflate_sparse
 from uav_global_planner.core.planner import Planner
 from uav_global_planner.core.status import PlanStatus
 
@@ -26,9 +27,9 @@ from uav_global_planner.core.status import PlanStatus
 def _stamped(grid: VoxelGrid, points: np.ndarray, gamma: float) -> np.ndarray:
     """The stamping of every point's ball alone: the reference."""
     blocked = np.zeros(grid.shape, dtype=bool)
-    relevant = inflation._relevant_points(grid, points, gamma)
-    inflation._stamp_points(blocked, np.asarray(grid.bounds_min), grid.resolution, relevant,
-                            gamma)
+    relevant = point_inflation.relevant_points(grid, points, gamma)
+    stamping.stamp_points(blocked, np.asarray(grid.bounds_min), grid.resolution, relevant,
+                          gamma)
     return blocked
 
 
@@ -36,7 +37,7 @@ def _by_transform(grid: VoxelGrid, points: np.ndarray, gamma: float, edge: int) 
     """The distance-transform pass alone, box by box (boxes of ``edge`` nodes), never giving
     up for a wide shell."""
     blocked = np.zeros(grid.shape, dtype=bool)
-    relevant = inflation._relevant_points(grid, points, gamma)
+    relevant = point_inflation.relevant_points(grid, points, gamma)
     bins = dense_inflation.bin_points(relevant, grid.bounds_min, grid.resolution, gamma)
     shape = np.asarray(grid.shape, dtype=np.int64)
     start, items = dense_inflation.bucket(bins, shape, edge)
@@ -128,8 +129,8 @@ def test_dense_builds_use_the_transform_and_agree_in_every_layout(monkeypatch):
     gamma = 0.25
     obstacles = ObstacleSet([PointSet(points)])
     calls = []
-    original = inflation.mark_box
-    monkeypatch.setattr(inflation, 'mark_box',
+    original = point_inflation.mark_box
+    monkeypatch.setattr(point_inflation, 'mark_box',
                         lambda *args: calls.append(1) or original(*args))
     dense = blocked_mask(grid, obstacles, gamma, layout='dense')
     assert calls, 'the dense cloud did not take the distance transform'

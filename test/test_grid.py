@@ -48,9 +48,9 @@ def test_contains_includes_the_boundary():
 
 
 @pytest.mark.parametrize('lo, hi, resolution, words', [
-    ([0, 0, 0], [1, 1, 1], 0.0, 'resolution must be a finite number > 0'),
-    ([0, 0, 0], [1, 1, 1], -0.5, 'resolution must be a finite number > 0'),
-    ([0, 0, 0], [1, 1, 1], float('nan'), 'resolution must be a finite number > 0'),
+    ([0, 0, 0], [1, 1, 1], 0.0, 'resolution must be > 0 m, got 0.0'),
+    ([0, 0, 0], [1, 1, 1], -0.5, 'resolution must be > 0 m, got -0.5'),
+    ([0, 0, 0], [1, 1, 1], float('nan'), 'resolution must be finite, got nan'),
     ([0, 0, 0], [1, 1, 1], 'fine', 'resolution must be a number'),
     ([0, 0, 1], [1, 1, 1], 0.1, 'bounds.min must be below bounds.max'),
     ([2, 0, 0], [1, 1, 1], 0.1, 'bounds.min must be below bounds.max'),

@@ -5,7 +5,7 @@ import pytest
 from scipy.spatial import cKDTree
 
 from uav_global_planner.core.errors import InvalidInputError
-from uav_global_planner.core.map import inflation
+from uav_global_planner.core.map import inflation, point_inflation, stamping
 from uav_global_planner.core.map.grid import VoxelGrid
 from uav_global_planner.core.map.inflation import blocked_mask
 from uav_global_planner.core.map.obstacles import Box, ObstacleSet, PointSet, Sphere
@@ -126,9 +126,9 @@ def _kd_cloud_mask(grid: VoxelGrid, points: np.ndarray, gamma: float) -> np.ndar
 def _stamped(grid: VoxelGrid, points: np.ndarray, gamma: float) -> np.ndarray:
     """The stamping loop alone, whatever blocked_mask would pick for these sizes."""
     blocked = np.zeros(grid.shape, dtype=bool)
-    relevant = inflation._relevant_points(grid, np.asarray(points, dtype=np.float64), gamma)
-    inflation._stamp_points(blocked, np.asarray(grid.bounds_min), grid.resolution, relevant,
-                            gamma)
+    relevant = point_inflation.relevant_points(grid, np.asarray(points, dtype=np.float64), gamma)
+    stamping.stamp_points(blocked, np.asarray(grid.bounds_min), grid.resolution, relevant,
+                          gamma)
     return blocked
 
 
@@ -190,10 +190,10 @@ def test_overlapping_balls_switch_to_the_nearest_point_query_with_the_same_answe
     grid = VoxelGrid.from_bounds([0.0, 0.0, 0.0], [3.0, 3.0, 3.0], 0.1)
     gamma = 2.0
     points = rng.uniform(-2.5, 5.5, (4000, 3))
-    assert (inflation._ball_visits(grid, len(points), gamma)
-            > inflation._VISITS_PER_NODE_COMPILED * grid.size)
+    assert (point_inflation.ball_visits(grid, len(points), gamma)
+            > point_inflation.VISITS_PER_NODE_COMPILED * grid.size)
     via_tree = np.zeros(grid.shape, dtype=bool)
-    inflation._mark_by_nearest_point_in(grid, points, gamma, via_tree, np.zeros(3, np.int64))
+    point_inflation.mark_by_nearest_point_in(grid, points, gamma, via_tree, np.zeros(3, np.int64))
     assert np.array_equal(via_tree, _stamped(grid, points, gamma))
     assert np.array_equal(blocked_mask(grid, ObstacleSet([PointSet(points)]), gamma), via_tree)
     assert np.array_equal(via_tree, _kd_cloud_mask(grid, points, gamma))
@@ -229,7 +229,7 @@ def test_far_points_neither_overflow_nor_block():
     points = np.array([[1e300, 0.0, 0.0], [-1e300, 1.0, 1.0], [1.0, 1.0, 1e18]])
     assert not _stamped(grid, points, 0.5).any()
     blocked = np.zeros(grid.shape, dtype=bool)
-    inflation._stamp_points(blocked, np.asarray(grid.bounds_min), grid.resolution, points, 1.0)
+    stamping.stamp_points(blocked, np.asarray(grid.bounds_min), grid.resolution, points, 1.0)
     assert not blocked.any()
 
 

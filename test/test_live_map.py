@@ -1,4 +1,5 @@
-"""Live maps (core/map/live_map.py): the point index, exact cloud comparison, tile-by-tile inflation.
+"""Live maps (core/map/live_map.py, point_cells.py, tiles.py, mask_buffers.py): the point index,
+exact cloud comparison, tile-by-tile inflation.
 
 Every incremental answer is checked against the plain computation it replaces: distances
 against scipy's KD-tree, masks against a full :func:`blocked_mask` of the same obstacles.
@@ -18,10 +19,11 @@ from uav_global_planner.core.config import PlannerConfig
 from uav_global_planner.core.errors import InvalidInputError
 from uav_global_planner.core.map.grid import VoxelGrid
 from uav_global_planner.core.map.inflation import blocked_mask, reinflate_tiles
-from uav_global_planner.core.map.live_map import (CellGeometry, changed_cells, LiveMapBuilder,
-                                                  LiveObstacles, MaskBuffers, PointCells,
-                                                  UNCHANGED)
+from uav_global_planner.core.map.live_map import LiveMapBuilder, LiveObstacles, UNCHANGED
+from uav_global_planner.core.map.mask_buffers import MaskBuffers
 from uav_global_planner.core.map.obstacles import Box, ObstacleSet, PointSet, Sphere
+from uav_global_planner.core.map.point_cells import changed_cells, PointCells
+from uav_global_planner.core.map.tiles import CellGeometry
 from uav_global_planner.core.planner import certify_plan, fallback_margin, Planner
 
 REPO = Path(__file__).resolve().parents[1]

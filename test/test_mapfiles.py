@@ -8,6 +8,7 @@ downsampling keeps its stated margin, scene files take ``points_file`` obstacles
 import json
 import math
 from pathlib import Path
+import re
 import shutil
 import subprocess
 import sys
@@ -346,8 +347,10 @@ def test_downsampling_keeps_every_point_within_its_margin(cell):
 
 
 def test_downsampling_refuses_a_bad_cell():
-    for cell in (0.0, -1.0, math.nan, math.inf, True, 'big'):
-        with pytest.raises(InvalidInputError, match='downsample must be a'):
+    for cell, words in ((0.0, 'a cell size > 0 m, got 0.0'), (-1.0, 'a cell size > 0 m, got -1.0'),
+                        (math.nan, 'finite, got nan'), (math.inf, 'finite, got inf'),
+                        (True, 'a number, got True'), ('big', "a number, got 'big'")):
+        with pytest.raises(InvalidInputError, match=f'^downsample must be {re.escape(words)}$'):
             voxel_downsample(np.zeros((3, 3)), cell)
 
 

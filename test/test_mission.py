@@ -428,7 +428,8 @@ def test_unknown_extension_is_refused():
 
 
 def test_scene_airspace_becomes_the_2d_geofence():
-    from uav_global_planner.core.map.airspace import Airspace, BoxZone, Cylinder, InclusionFence
+    from uav_global_planner.core.map.airspace import Airspace
+    from uav_global_planner.core.map.zones import BoxZone, Cylinder, InclusionFence
     fence = InclusionFence([[-19.0, -19.0], [19.0, -19.0], [19.0, 19.0], [-19.0, 19.0]])
     tower = Cylinder([10.0, -10.0], 2.0)                        # every altitude, off the route
     shed = BoxZone([-1.0, -1.0, 0.0], [1.0, 1.0, 3.0])          # low: the route flies over it

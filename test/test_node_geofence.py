@@ -17,8 +17,9 @@ import yaml
 
 from ros_harness import planner_session, PlannerClient, RUN_NAMESPACE
 from uav_global_planner.core.io.geodesy import GeodeticOrigin
-from uav_global_planner.core.map.airspace import Cylinder, InclusionFence, load_geofence
+from uav_global_planner.core.io.geofence import load_geofence
 from uav_global_planner.core.map.obstacles import ObstacleSet
+from uav_global_planner.core.map.zones import Cylinder, InclusionFence
 from uav_global_planner.ros import conversions as conv
 
 pytestmark = pytest.mark.ros

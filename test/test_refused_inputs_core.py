@@ -202,7 +202,8 @@ CATALOGUE = (
     Case('plan_unknown_algorithm', PLAN, "algorithm 'bfs'", 'invalid_input', "got 'bfs'",
          covered_by='test_planner.py::test_unknown_algorithm_is_invalid_input'),
     Case('plan_algorithm_wrong_case', PLAN, "algorithm 'ADAPTIVE'", 'invalid_input',
-         "algorithm must be one of dijkstra, astar, adaptive, octile, weighted, got 'ADAPTIVE'",
+         'algorithm must be one of dijkstra, astar, adaptive, octile, weighted, bounded, '
+         "got 'ADAPTIVE'",
          (VALID_START, VALID_GOAL, 'ADAPTIVE')),
     Case('plan_algorithm_number', PLAN, 'algorithm 42', 'invalid_input', 'got 42',
          (VALID_START, VALID_GOAL, 42)),
@@ -245,10 +246,11 @@ CATALOGUE = (
          'adaptive_threshold must be in [0.0, 1000000.0], got -1.0',
          _config(adaptive_threshold=-1.0)),
     Case('config_algorithm_unknown', CONFIG, "algorithm 'bfs'", ERROR,
-         'algorithm must be one of dijkstra, astar, adaptive, octile, weighted, got',
+         'algorithm must be one of dijkstra, astar, adaptive, octile, weighted, bounded, got',
          covered_by=TEST_CONFIG),
     Case('config_algorithm_none', CONFIG, 'algorithm None', ERROR,
-         'algorithm must be one of dijkstra, astar, adaptive, octile, weighted, got None',
+         'algorithm must be one of dijkstra, astar, adaptive, octile, weighted, bounded, '
+         'got None',
          _config(algorithm=None)),
     Case('config_smoothing_unknown', CONFIG, "smoothing 'bezier'", ERROR,
          'smoothing must be one of chord, index, none', covered_by=TEST_CONFIG),

@@ -22,14 +22,16 @@ from scipy.sparse.csgraph import dijkstra
 
 from uav_global_planner.core.config import PlannerConfig
 from uav_global_planner.core.errors import InvalidInputError
-from uav_global_planner.core.map import inflation, sparse_grid
-from uav_global_planner.core.map.airspace import Cylinder, InclusionCircle
+from uav_global_planner.core.map import point_inflation, sparse_grid, sparse_inflation
 from uav_global_planner.core.map.grid import VoxelGrid
-from uav_global_planner.core.map.inflation import blocked_mask, reinflate_sparse
-from uav_global_planner.core.map.live_map import LiveMapBuilder, MaskBuffers
+from uav_global_planner.core.map.inflation import blocked_mask
+from uav_global_planner.core.map.live_map import LiveMapBuilder
+from uav_global_planner.core.map.mask_buffers import MaskBuffers
 from uav_global_planner.core.map.obstacles import Box, Obstacle, ObstacleSet, PointSet, Sphere
 from uav_global_planner.core.map.sparse_grid import (choose_layout, first_free_node, FREE, FULL,
                                                      SparseMask)
+from uav_global_planner.core.map.sparse_inflation import reinflate_sparse
+from uav_global_planner.core.map.zones import Cylinder, InclusionCircle
 from uav_global_planner.core.planner import Planner
 from uav_global_planner.core.search.grid_search import SearchWorkspace
 
@@ -95,7 +97,8 @@ def test_sparse_and_dense_layouts_block_the_same_nodes(seed):
 
 
 def test_a_build_on_several_threads_blocks_the_same_nodes(monkeypatch):
-    monkeypatch.setattr(inflation, '_cpu_count', lambda: 4)
+    monkeypatch.setattr(sparse_inflation, 'cpu_count', lambda: 4)
+    monkeypatch.setattr(point_inflation, 'cpu_count', lambda: 4)
     rng = np.random.default_rng(21)
     grid = VoxelGrid.from_bounds([0, 0, 0], [29.9, 29.9, 6.9], 0.1)  # 50 build windows
     obstacles = ObstacleSet([PointSet(rng.uniform(-0.5, 30.5, (20000, 3)) * [1, 1, 0.23]),

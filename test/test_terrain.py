@@ -10,10 +10,11 @@ import pytest
 from uav_global_planner.core.config import PlannerConfig
 from uav_global_planner.core.errors import InvalidInputError
 from uav_global_planner.core.map.grid import VoxelGrid
-from uav_global_planner.core.map.inflation import blocked_mask, reinflate_sparse, reinflate_tiles
+from uav_global_planner.core.map.inflation import blocked_mask, reinflate_tiles
 from uav_global_planner.core.map.live_map import LiveMapBuilder, same_shape
 from uav_global_planner.core.map.obstacles import Box, ObstacleSet, PointSet, Sphere
 from uav_global_planner.core.map.sparse_grid import BRICK, FULL, SparseMask
+from uav_global_planner.core.map.sparse_inflation import reinflate_sparse
 from uav_global_planner.core.map.terrain import column_limits, flat_ground, HeightField
 from uav_global_planner.core.planner import Planner
 

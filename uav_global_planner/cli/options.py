@@ -9,7 +9,6 @@ from typing import List, Optional, Sequence
 
 from uav_global_planner.core.config import ALGORITHMS
 from uav_global_planner.core.errors import InvalidInputError
-from uav_global_planner.core.io.scene import shipped_scenes
 
 #: The epilog of every ``uav-plan`` command's help.
 EXIT_CODES = ('exit codes:\n'
@@ -80,6 +79,8 @@ def join_negative_values(argv: Sequence[str]) -> List[str]:
 
 def scene_help() -> str:
     """Help of the scene argument, naming every shipped scene."""
+    # Imported here: the scene module brings the planner, which ``uav-plan --help`` needs not.
+    from uav_global_planner.core.io.scene import shipped_scenes
     names = ', '.join(path.stem for path in shipped_scenes()) or 'none installed'
     return ('scene YAML file (a path, which must exist), or the name of a shipped scene: '
             f'{names}')
@@ -92,7 +93,8 @@ def add_algorithm_option(parser: argparse.ArgumentParser) -> None:
                         "astar (Euclidean), adaptive (the paper's eq. 12: fewest expansions, "
                         'paths a few percent longer, no bound), octile (optimal, fewer '
                         'expansions than astar), weighted (at most search_weight times the '
-                        'optimum); default %(default)s')
+                        'optimum), bounded (at most bound times the optimum, proven for each '
+                        'query); default %(default)s')
 
 
 def check_image_file(option: str, text: Optional[str]) -> None:

@@ -39,6 +39,7 @@ class PlannerConfig:
     adaptive_threshold: float = _DEFAULT['adaptive_threshold']
     algorithm: str = _DEFAULT['algorithm']
     search_weight: float = _DEFAULT['search_weight']
+    bound: float = _DEFAULT['bound']
     max_expansions: int = _DEFAULT['max_expansions']
     max_planning_time: float = _DEFAULT['max_planning_time']
     max_voxels: int = _DEFAULT['max_voxels']

@@ -7,7 +7,7 @@ what happened, so the ROS node and the command-line tool report failures the sam
 
 Not thread-safe: call it from one thread at a time.
 
-One module, though long (about 650 lines): the facade's plan, its legs through via-points, the
+One module, though long (about 850 lines): the facade's plan, its legs through via-points, the
 budget and the fallback grid are one sequence of stages over one grid and one set of
 workspaces.
 """
@@ -24,12 +24,12 @@ from uav_global_planner.core.config import ALGORITHMS, PlannerConfig, validate_c
 from uav_global_planner.core.errors import (GoalOccupiedError, GoalOutsideMapError,
                                             InvalidInputError, NoValidPathError, PlanningError,
                                             StartOccupiedError, StartOutsideMapError)
-from uav_global_planner.core.map.airspace import check_endpoint
 from uav_global_planner.core.map.grid import as_point, HALF_CELL_DIAGONAL, VoxelGrid
 from uav_global_planner.core.map.inflation import blocked_mask, Mask
 from uav_global_planner.core.map.obstacles import ObstacleSet
 from uav_global_planner.core.map.sparse_grid import first_free_node
 from uav_global_planner.core.map.unknown_space import UnknownSpace
+from uav_global_planner.core.map.zone_checks import check_endpoint
 from uav_global_planner.core.path.clearance import certify_pieces, certify_polyline, Pieces
 from uav_global_planner.core.path.energy import estimate_energy, VehicleModel
 from uav_global_planner.core.path.handover import Handover
@@ -38,6 +38,7 @@ from uav_global_planner.core.path.smoothing import smooth_path, SmoothedPath
 from uav_global_planner.core.path.timing import time_parameterize
 from uav_global_planner.core.path.tracking import tracking_speed_cap
 from uav_global_planner.core.result import LegResult, PlanResult, polyline_length, Trajectory
+from uav_global_planner.core.search.bounded import bounded_search
 from uav_global_planner.core.search.grid_search import SearchWorkspace
 from uav_global_planner.core.status import PlanStatus
 
@@ -539,6 +540,14 @@ class Planner:
             self._workspace = SearchWorkspace(inflated.blocked)
         elif self._workspace.blocked is not inflated.blocked:
             self._workspace.set_blocked(inflated.blocked)
+        if algorithm == 'bounded':
+            return bounded_search(self._workspace, start_node, goal_node, config.resolution,
+                                  config.adaptive_threshold, config.bound,
+                                  config.max_expansions, climb_weight=config.climb_weight,
+                                  descent_weight=config.descent_weight,
+                                  checkpoint=None if budget is None else budget.check,
+                                  unknown=self._unknown_nodes(inflated),
+                                  unknown_cost=config.unknown_cost)
         return self._workspace.search(start_node, goal_node, algorithm, config.resolution,
                                       config.adaptive_threshold, config.max_expansions,
                                       weight=config.search_weight,

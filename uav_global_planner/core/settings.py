@@ -31,6 +31,7 @@ from typing import Any, Dict, Iterable, Optional, Tuple
 
 import numpy as np
 
+from uav_global_planner.core.checks import integer_refusal, number_refusal, NUMBER_TYPES
 from uav_global_planner.core.errors import InvalidInputError
 from uav_global_planner.core.map.grid import DEFAULT_MAX_VOXELS
 
@@ -38,7 +39,7 @@ from uav_global_planner.core.map.grid import DEFAULT_MAX_VOXELS
 INT64_MAX = 2 ** 63 - 1
 
 #: Search heuristics, by the names users type.
-ALGORITHMS = ('dijkstra', 'astar', 'adaptive', 'octile', 'weighted')
+ALGORITHMS = ('dijkstra', 'astar', 'adaptive', 'octile', 'weighted', 'bounded')
 
 #: Spline parameterisations: chord length sampled in metres, or the paper's node index.
 SMOOTHING_MODES = ('chord', 'index', 'none')
@@ -67,9 +68,6 @@ class Kind(Enum):
     TEXT = 'text'
     NAMES = 'names'
     WORD_OR_NUMBER = 'word or number'
-
-
-_NUMBER_TYPES = (int, float, np.integer, np.floating)
 
 
 @dataclass(frozen=True)
@@ -216,13 +214,9 @@ class Setting:
         if kind is Kind.FLOAT:
             return _float_refusal(value, self)
         if kind is Kind.INT:
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-                return '', f'must be an integer, got {value!r}'
-            number = int(value)
             high = INT64_MAX if self.high is None else int(self.upper)
-            if number < int(self.low) or number > high:
-                return '', f'must be {self.accepted}, got {number}'
-            return None
+            reason = integer_refusal(value, int(self.low), high, self.accepted)
+            return None if reason is None else ('', reason)
         if kind is Kind.BOOL:
             if not isinstance(value, (bool, np.bool_)):
                 return '', f'must be {self.accepted}, got {value!r}'
@@ -236,10 +230,9 @@ class Setting:
                     or len(value) != 3):
                 return '', f'must be {self.accepted}, got {value!r}'
             for axis, item in enumerate(value):
-                if isinstance(item, bool) or not isinstance(item, _NUMBER_TYPES):
-                    return f'[{axis}]', f'must be a number, got {item!r}'
-                if not math.isfinite(float(item)):
-                    return f'[{axis}]', f'must be finite, got {float(item)}'
+                reason = number_refusal(item)
+                if reason is not None:
+                    return f'[{axis}]', reason
             return None
         if kind is Kind.WORD_OR_NUMBER:
             return _word_or_number_refusal(value, self)
@@ -294,15 +287,9 @@ class Setting:
 
 
 def _float_refusal(value: Any, setting: Setting) -> Optional[Tuple[str, str]]:
-    if isinstance(value, bool) or not isinstance(value, _NUMBER_TYPES):
-        return '', f'must be a number, got {value!r}'
-    number = float(value)
-    if not math.isfinite(number):
-        return '', f'must be finite, got {number}'
-    low, high = float(setting.low), float(setting.upper)
-    if (number <= low if setting.low_open else number < low) or number > high:
-        return '', f'must be {setting.accepted}, got {number}'
-    return None
+    reason = number_refusal(value, float(setting.low), float(setting.upper),
+                            low_open=setting.low_open, accepted=setting.accepted)
+    return None if reason is None else ('', reason)
 
 
 def _word_or_number_refusal(value: Any, setting: Setting) -> Optional[Tuple[str, str]]:
@@ -315,7 +302,7 @@ def _word_or_number_refusal(value: Any, setting: Setting) -> Optional[Tuple[str,
             number = float(value)
         except ValueError:
             return '', f'must be {setting.accepted}, got {value!r}'
-    elif isinstance(value, bool) or not isinstance(value, _NUMBER_TYPES):
+    elif isinstance(value, bool) or not isinstance(value, NUMBER_TYPES):
         return '', f'must be {setting.accepted}, got {value!r}'
     else:
         number = float(value)
@@ -367,11 +354,16 @@ PLANNER_SETTINGS: Tuple[Setting, ...] = (
             scene_key='adaptive_threshold', scene_required=True, flag='--adaptive-threshold'),
     Setting('algorithm', Kind.CHOICE, 'adaptive', 'search heuristic',
             'One of dijkstra (none), astar (Euclidean), adaptive (paper eq. 12, Manhattan beyond '
-            'eta), octile (optimal, fewest expansions) or weighted (cost <= search_weight x '
-            'optimum).', choices=ALGORITHMS, field='algorithm'),
+            'eta), octile (optimal, fewest expansions), weighted (cost <= search_weight x '
+            'optimum) or bounded (cost <= bound x optimum, proven per query).',
+            choices=ALGORITHMS, field='algorithm'),
     Setting('search_weight', Kind.FLOAT, 1.05, 'suboptimality bound w',
             "The weighted algorithm's path costs at most w times the optimum.", '', 1.0, 10.0,
             field='search_weight', scene_key='planner.search_weight', flag='--search-weight'),
+    Setting('bound', Kind.FLOAT, 1.05, 'certified suboptimality bound w',
+            "The bounded algorithm's path costs at most w times the optimum, proven for each "
+            'query by a lower bound from the search.', '', 1.0, 10.0, field='bound',
+            scene_key='planner.bound', flag='--bound'),
     Setting('max_expansions', Kind.INT, 0, 'search budget in expanded nodes',
             '0 = no limit; exceeding it reports TIMEOUT (207).', '', 0,
             field='max_expansions', scene_key='planner.max_expansions'),

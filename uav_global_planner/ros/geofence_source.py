@@ -15,7 +15,8 @@ from pathlib import Path
 from typing import Any, Dict, Mapping, Tuple
 
 from uav_global_planner.core.errors import InvalidInputError
-from uav_global_planner.core.map.airspace import Airspace, load_geofence
+from uav_global_planner.core.io.geofence import load_geofence
+from uav_global_planner.core.map.airspace import Airspace
 from uav_global_planner.core.map.spatial_index import TableShape
 from uav_global_planner.ros.mission_service import origin_from_value, ORIGIN_PARAMETER
 

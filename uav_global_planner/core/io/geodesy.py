@@ -28,12 +28,12 @@ z = 0 far from the origin is above the ellipsoid's surface by about r**2 / (2 R_
 """
 
 from dataclasses import dataclass
-import math
 from types import ModuleType
 from typing import Any, Sequence, Tuple, Union
 
 import numpy as np
 
+from uav_global_planner.core.checks import check_number
 from uav_global_planner.core.errors import InvalidInputError
 
 #: The pip package that provides the conversions.
@@ -106,12 +106,7 @@ class GeodeticOrigin:
 
 
 def _finite(name: str, value: Any) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
-        raise InvalidInputError(f'{name}: must be a number, got {value!r}')
-    number = float(value)
-    if not math.isfinite(number):
-        raise InvalidInputError(f'{name}: must be finite, got {number}')
-    return number
+    return check_number(f'{name}:', value)
 
 
 def origin_from_sequence(values: Sequence[Any], name: str = 'geodetic_origin') -> GeodeticOrigin:

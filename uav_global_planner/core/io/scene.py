@@ -23,11 +23,11 @@ Format (every key below is required except ``description``, ``frame_id`` and ``o
         - {type: box, min: [x, y, z], max: [x, y, z]}
     cost: {climb_weight: 1.0, descent_weight: 1.0}   # optional, the energy-aware step cost
     known_volume: [{min: [x, y, z], max: [x, y, z]}]  # optional: outside them is unknown
-    unknown_space: occupied  # optional: occupied (default), free or cost; core/map/unknown_space.py
+    unknown_space: occupied  # optional: occupied (default), free or cost; map/unknown_space.py
     vehicle: {mass: 1.5, hover_power: 180.0}         # optional [kg], [W], see core/path/energy.py
     planner: {smoothing: chord, max_speed_horizontal: 2.0}   # optional, any key listed below
     ground: floor            # optional: none (default), floor or a height [m]; core/map/ground.py
-    terrain: {file: dem.tif}  # optional DEM (.tif, .asc; .npy with origin, spacing); core/map/dem.py
+    terrain: {file: dem.tif}  # optional DEM (.tif, .asc; .npy with origin, spacing); map/dem.py
     min_agl: 10.0            # optional height band above the ground [m], 0 = off
     max_agl: 120.0
 
@@ -57,12 +57,14 @@ from typing import Any, Dict, List, Mapping, Optional, Set, Tuple, Union
 import numpy as np
 import yaml
 
+from uav_global_planner.core.checks import check_number
 from uav_global_planner.core.config import PlannerConfig, validate_config
 from uav_global_planner.core.errors import InvalidInputError
 from uav_global_planner.core.io.geodesy import GeodeticOrigin
+from uav_global_planner.core.io.geofence import parse_geofence
 from uav_global_planner.core.io.mapfiles import load_map_points, MapReport
 from uav_global_planner.core.io.text_files import parse_text_file
-from uav_global_planner.core.map.airspace import Airspace, parse_geofence
+from uav_global_planner.core.map.airspace import Airspace
 from uav_global_planner.core.map.dem import load_dem, parse_terrain
 from uav_global_planner.core.map.ground import ground_obstacles
 from uav_global_planner.core.map.obstacles import Box, Obstacle, ObstacleSet, PointSet, Sphere
@@ -150,12 +152,9 @@ def _fail(path: str, reason: str) -> InvalidInputError:
     return InvalidInputError(f'{path}: {reason}')
 
 
-def _number(value: Any, path: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise _fail(path, f'must be a number, got {value!r}')
-    if not math.isfinite(value):
-        raise _fail(path, f'must be finite, got {value!r}')
-    return float(value)
+def _number(value: Any, path: str, low: float = -math.inf, **range_words: Any) -> float:
+    """:func:`~uav_global_planner.core.checks.check_number` of a value at key ``path``."""
+    return check_number(f'{path}:', value, low, **range_words)
 
 
 def _vector(value: Any, path: str) -> np.ndarray:
@@ -197,9 +196,7 @@ def _obstacle(entry: Any, path: str, folder: Optional[Path] = None,
         return _points_file(entry, values['path'], path, folder, config, reports)
     if kind == 'sphere':
         center = _vector(values['center'], f'{path}.center')
-        radius = _number(values['radius'], f'{path}.radius')
-        if radius <= 0.0:
-            raise _fail(f'{path}.radius', f'must be > 0 m, got {radius}')
+        radius = _number(values['radius'], f'{path}.radius', 0.0, low_open=True, unit='m')
         return Sphere(center, radius), 0.0
     if kind == 'box':
         lo = _vector(values['min'], f'{path}.min')
@@ -222,9 +219,8 @@ def _points_file(entry: dict, file: Any, path: str, folder: Optional[Path],
         raise _fail(f'{path}.path', f'must be a file name, got {file!r}')
     downsample = entry.get('downsample')
     if downsample is not None:
-        downsample = _number(downsample, f'{path}.downsample')
-        if downsample <= 0.0:
-            raise _fail(f'{path}.downsample', f'must be a cell size > 0 m, got {downsample}')
+        downsample = _number(downsample, f'{path}.downsample', 0.0, low_open=True,
+                             accepted='a cell size > 0 m')
     location = Path(file).expanduser()
     if not location.is_absolute() and folder is not None:
         location = folder / location

@@ -50,6 +50,7 @@ from typing import Any, Dict, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
+from uav_global_planner.core.checks import check_number
 from uav_global_planner.core.errors import InvalidInputError, MissingDependencyError
 from uav_global_planner.core.io.geodesy import enu_to_geodetic, GeodeticOrigin
 from uav_global_planner.core.map.terrain import HeightField
@@ -91,14 +92,7 @@ class TerrainSource:
 def _pair(value: Any, path: str) -> Tuple[float, float]:
     if isinstance(value, (str, bytes)) or not hasattr(value, '__len__') or len(value) != 2:
         raise InvalidInputError(f'{path}: must be two numbers [x, y] [m], got {value!r}')
-    numbers = []
-    for axis, item in enumerate(value):
-        if isinstance(item, bool) or not isinstance(item, (int, float, np.integer,
-                                                           np.floating)):
-            raise InvalidInputError(f'{path}[{axis}]: must be a number, got {item!r}')
-        if not math.isfinite(float(item)):
-            raise InvalidInputError(f'{path}[{axis}]: must be finite, got {float(item)}')
-        numbers.append(float(item))
+    numbers = [check_number(f'{path}[{axis}]:', item) for axis, item in enumerate(value)]
     return numbers[0], numbers[1]
 
 
@@ -251,13 +245,7 @@ def _read_asc(file: Path) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
         row = len(lines)
     numbers: Dict[str, float] = {}
     for key, text in header.items():
-        try:
-            numbers[key] = float(text)
-        except ValueError:
-            raise InvalidInputError(f'{file}: header {key} must be a number, got '
-                                    f'{text!r}') from None
-        if not math.isfinite(numbers[key]):
-            raise InvalidInputError(f'{file}: header {key} must be finite, got {text}')
+        numbers[key] = check_number(f'{file}: header {key}', text, convert=True)
     for key in ('ncols', 'nrows'):
         if key not in numbers:
             raise InvalidInputError(f'{file}: not an ESRI ASCII grid: no {key} in the header')

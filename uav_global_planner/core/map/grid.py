@@ -10,6 +10,7 @@ import math
 
 import numpy as np
 
+from uav_global_planner.core.checks import check_point, check_positive
 from uav_global_planner.core.errors import InvalidInputError
 
 #: Distance from the centre of a cube of side 1 to its corners, sqrt(3) / 2: a point of a segment
@@ -39,62 +40,30 @@ _RAISE_CAP = ('or raise max_voxels (scene key max_voxels, uav-plan --max-voxels 
 _CELL_EPS = 1e-9
 
 
-def finite_point(value, label: str, axes: str = 'xyz') -> np.ndarray:
-    """Return ``value`` as a finite float64 array with one item per axis.
-
-    Parameters
-    ----------
-    value : array_like
-    label : str
-        Start of the message (``'start'``, or ``'center:'`` for a key path).
-    axes : str
-        Axis letters, ``'xyz'`` (shape (3,)) or ``'xy'`` (shape (2,)).
-
-    Raises
-    ------
-    InvalidInputError
-        ``<label> must be three numbers [x, y, z], got ...`` (or ``two numbers [x, y]``), or
-        ``<label> must be finite, got ...``.
-    """
-    wanted = f"{('two', 'three')[len(axes) - 2]} numbers [{', '.join(axes)}]"
-    try:
-        point = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise InvalidInputError(f'{label} must be {wanted}, got {value!r}') from None
-    if point.shape != (len(axes),):
-        raise InvalidInputError(f'{label} must be {wanted}, got {value!r}')
-    if not np.all(np.isfinite(point)):
-        raise InvalidInputError(f'{label} must be finite, got {point.tolist()}')
-    return point
-
-
 def as_point(value, name: str) -> np.ndarray:
-    """Return ``value`` as a finite float64 array of shape (3,).
+    """Return ``value`` as a finite float64 array of shape (3,)
+    (:func:`~uav_global_planner.core.checks.check_point`, value first).
 
     Raises
     ------
     InvalidInputError
-        If ``value`` is not three finite numbers; the message names ``name``.
+        ``<name> must be three numbers [x, y, z], got ...`` or ``<name> must be finite, got
+        [...]``.
     """
-    return finite_point(value, name)
+    return check_point(name, value)
 
 
 def positive_number(name: str, value, unit: str = '') -> float:
-    """Return ``value`` as a finite float > 0.
+    """Return ``value`` as a finite float > 0
+    (:func:`~uav_global_planner.core.checks.check_positive`).
 
     Raises
     ------
     InvalidInputError
-        If ``value`` is not a number, not finite or not positive; the message names ``name``.
+        ``<name> must be a number, got ...``, ``<name> must be finite, got ...`` or ``<name>
+        must be > 0 <unit>, got ...``.
     """
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        raise InvalidInputError(f'{name} must be a number, got {value!r}') from None
-    if not np.isfinite(number) or number <= 0.0:
-        suffix = f' {unit}' if unit else ''
-        raise InvalidInputError(f'{name} must be a finite number > 0{suffix}, got {number}')
-    return number
+    return check_positive(name, value, unit)
 
 
 @dataclass(frozen=True, eq=False)

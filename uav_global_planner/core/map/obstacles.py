@@ -19,9 +19,9 @@ from typing import Dict, Iterable, Sequence, Union
 import numpy as np
 from scipy.spatial import cKDTree
 
+from uav_global_planner.core.checks import check_point, check_positive
 from uav_global_planner.core.errors import InvalidInputError
 from uav_global_planner.core.jit import njit
-from uav_global_planner.core.map.grid import as_point
 from uav_global_planner.core.map.spatial_index import (BOX, BRUTE_FORCE_SHAPES, min_gap_all,
                                                        ShapeIndex, SPHERE, TableShape)
 from uav_global_planner.core.map.terrain import HeightField
@@ -48,11 +48,8 @@ class Sphere:
     radius: float
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, 'center', as_point(self.center, 'sphere center'))
-        radius = _finite_float(self.radius, 'sphere radius')
-        if radius <= 0.0:
-            raise InvalidInputError(f'sphere radius must be > 0 m, got {radius}')
-        object.__setattr__(self, 'radius', radius)
+        object.__setattr__(self, 'center', check_point('sphere center', self.center))
+        object.__setattr__(self, 'radius', check_positive('sphere radius', self.radius, 'm'))
 
 
 @dataclass(frozen=True, eq=False)
@@ -69,8 +66,8 @@ class Box:
     max: np.ndarray
 
     def __post_init__(self) -> None:
-        lo = as_point(self.min, 'box min')
-        hi = as_point(self.max, 'box max')
+        lo = check_point('box min', self.min)
+        hi = check_point('box max', self.max)
         if np.any(lo >= hi):
             raise InvalidInputError(
                 f'box min must be below box max on every axis, got {lo.tolist()} and '
@@ -107,16 +104,6 @@ class PointSet:
 
 
 Obstacle = Union[Sphere, Box, PointSet, TableShape, HeightField]
-
-
-def _finite_float(value, name: str) -> float:
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        raise InvalidInputError(f'{name} must be a number, got {value!r}') from None
-    if not np.isfinite(number):
-        raise InvalidInputError(f'{name} must be finite, got {number}')
-    return number
 
 
 def sphere_distance(points: np.ndarray, centers: np.ndarray, radii: np.ndarray) -> np.ndarray:

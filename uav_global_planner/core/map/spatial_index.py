@@ -191,7 +191,20 @@ def _min_gap_all(points, kind, prm, verts, vstart, out):  # pragma: no cover - c
         y = points[n, 1]
         z = points[n, 2]
         for s in range(kind.shape[0]):
-            gap = _gap(kind, prm, verts, vstart, s, x, y, z)
+            code = kind[s]
+            # Spheres and boxes in place (see _min_gap_indexed).
+            if code == SPHERE:
+                dx = x - prm[s, 0]
+                dy = y - prm[s, 1]
+                dz = z - prm[s, 2]
+                gap = math.sqrt((dx * dx + dy * dy) + dz * dz) - prm[s, 3]
+            elif code == BOX:
+                ex = max(max(prm[s, 0] - x, x - prm[s, 3]), 0.0)
+                ey = max(max(prm[s, 1] - y, y - prm[s, 4]), 0.0)
+                ez = max(max(prm[s, 2] - z, z - prm[s, 5]), 0.0)
+                gap = math.sqrt((ex * ex + ey * ey) + ez * ez)
+            else:
+                gap = _gap(kind, prm, verts, vstart, s, x, y, z)
             if gap < best:
                 best = gap
         out[n] = max(best, 0.0)
@@ -217,7 +230,23 @@ def _min_gap_indexed(points, kind, prm, verts, vstart, always, origin, cell, dim
         if 0.0 <= fi < nx and 0.0 <= fj < ny and 0.0 <= fk < nz:
             c = (int(fi) * ny + int(fj)) * nz + int(fk)
             for e in range(start[c], start[c + 1]):
-                gap = _gap(kind, prm, verts, vstart, items[e], x, y, z)
+                s = items[e]
+                code = kind[s]
+                # Spheres and boxes are worked out here, with the very operations of
+                # _column_part and _finish (same bits): a call of _gap per shape, passing the
+                # whole table, costs several times their arithmetic.
+                if code == SPHERE:
+                    dx = x - prm[s, 0]
+                    dy = y - prm[s, 1]
+                    dz = z - prm[s, 2]
+                    gap = math.sqrt((dx * dx + dy * dy) + dz * dz) - prm[s, 3]
+                elif code == BOX:
+                    ex = max(max(prm[s, 0] - x, x - prm[s, 3]), 0.0)
+                    ey = max(max(prm[s, 1] - y, y - prm[s, 4]), 0.0)
+                    ez = max(max(prm[s, 2] - z, z - prm[s, 5]), 0.0)
+                    gap = math.sqrt((ex * ex + ey * ey) + ez * ez)
+                else:
+                    gap = _gap(kind, prm, verts, vstart, s, x, y, z)
                 if gap < best:
                     best = gap
         out[n] = max(best, 0.0)

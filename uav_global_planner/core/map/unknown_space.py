@@ -39,9 +39,9 @@ from typing import Any, Iterable, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
+from uav_global_planner.core.checks import check_file, check_point
 from uav_global_planner.core.errors import InvalidInputError, MissingDependencyError
 from uav_global_planner.core.jit import njit
-from uav_global_planner.core.map.grid import as_point
 from uav_global_planner.core.map.obstacles import Box, ObstacleSet
 
 PathLike = Union[str, Path]
@@ -197,8 +197,8 @@ def _blocks(mins: np.ndarray, maxs: np.ndarray, rows: int):
 
 
 def _bounds(bounds_min, bounds_max) -> Tuple[np.ndarray, np.ndarray]:
-    lo = as_point(bounds_min, 'bounds min')
-    hi = as_point(bounds_max, 'bounds max')
+    lo = check_point('bounds min', bounds_min)
+    hi = check_point('bounds max', bounds_max)
     if np.any(lo >= hi):
         raise InvalidInputError(f'bounds min must be below bounds max on every axis, got '
                                 f'{lo.tolist()} and {hi.tolist()}')
@@ -301,8 +301,7 @@ def read_octree(path: PathLike) -> Any:
             "reading OctoMap .bt files needs the Python package 'octomap-python', which is "
             'not installed: pip install octomap-python (or pip install '
             'uav_global_planner[maps])') from None
-    if not file.is_file():
-        raise InvalidInputError(f'{file}: cannot read map file (no such file)')
+    check_file(file, 'map file')
     tree = octomap.OcTree(0.1)  # the resolution stored in the file replaces it
     if not tree.readBinary(str(file).encode()):
         raise InvalidInputError(f'{file}: not a valid OctoMap binary (.bt) file: the OctoMap '
@@ -534,7 +533,7 @@ def parse_known_volume(value: Any, key: str = 'known_volume') -> Tuple[np.ndarra
         corners = []
         for name in ('min', 'max'):
             try:
-                corners.append(as_point(entry[name], name))
+                corners.append(check_point(name, entry[name]))
             except InvalidInputError as error:
                 raise InvalidInputError(f'{path}.{name}: {error}') from None
         if np.any(corners[0] >= corners[1]):

@@ -17,8 +17,9 @@ from typing import assert_never, List, Sequence, Tuple
 import numpy as np
 
 from uav_global_planner.core.io.geodesy import enu_to_geodetic, GeodeticOrigin
-from uav_global_planner.core.map.airspace import (Airspace, BoxZone, Cylinder, InclusionCircle,
-                                                  InclusionFence, Prism)
+from uav_global_planner.core.map.airspace import Airspace
+from uav_global_planner.core.map.zones import (BoxZone, Cylinder, InclusionCircle, InclusionFence,
+                                               Prism)
 from uav_global_planner.core.mission.model import FenceCircle, FencePolygon, GeoFence
 from uav_global_planner.core.mission.stored import ALTITUDE_DECIMALS, LATLON_DECIMALS, round_stored
 

@@ -6,9 +6,10 @@ from typing import Tuple
 
 import numpy as np
 
+from uav_global_planner.core.checks import check_number
 from uav_global_planner.core.errors import InvalidInputError, PlanningError
 from uav_global_planner.core.io.geodesy import GeodeticOrigin
-from uav_global_planner.core.mission.settings import check_number, MissionSettings
+from uav_global_planner.core.mission.settings import MissionSettings
 from uav_global_planner.core.status import PlanStatus
 
 # MAVLink numbers (common.xml).

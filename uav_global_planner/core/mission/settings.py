@@ -9,10 +9,7 @@ them in the same words. A :class:`MissionSettings` always holds values
 """
 
 from dataclasses import dataclass
-import math
-from typing import Any, Dict, Optional, Tuple
-
-import numpy as np
+from typing import Dict, Optional, Tuple
 
 from uav_global_planner.core.errors import InvalidInputError
 from uav_global_planner.core.settings import by_name, Kind, Setting
@@ -111,34 +108,3 @@ class MissionSettings:
             raise InvalidInputError(
                 f'takeoff_height must be >= acceptance_radius ({self.acceptance_radius} m), got '
                 f'{self.takeoff_height} m: the take-off point is a turn')
-
-
-def check_number(name: str, value: Any, low: float, high: float,
-                 low_open: bool = False) -> float:
-    """``value`` as a float, checked to be a finite number in ``[low, high]``.
-
-    Parameters
-    ----------
-    name : str
-        The setting's name, for the error message.
-    value : object
-        The value given (bools are refused).
-    low, high : float
-        The range, in the setting's unit.
-    low_open : bool
-        True: ``low`` itself is refused, the range is ``(low, high]``.
-
-    Raises
-    ------
-    InvalidInputError
-        When it is not a number, not finite or out of range.
-    """
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
-        raise InvalidInputError(f'{name} must be a number, got {value!r}')
-    number = float(value)
-    if not math.isfinite(number):
-        raise InvalidInputError(f'{name} must be finite, got {number}')
-    if (number <= low if low_open else number < low) or number > high:
-        raise InvalidInputError(
-            f'{name} must be in {"(" if low_open else "["}{low}, {high}], got {number}')
-    return number
