@@ -209,34 +209,35 @@ def test_plan_that_collides_with_obstacles_received_meanwhile_is_not_published()
         planner = PlannerNode(context=context)
         published: List[object] = []
         diagnostics: List[Dict[str, object]] = []
-        planner._plan_pub.publish = published.append
-        planner._publish_diagnostics = (
+        planner.in_force._plan_pub.publish = published.append
+        planner.diagnostics.publish = (
             lambda stamp_ns, level, message, values: diagnostics.append(dict(values)))
-        planner._on_obstacles(conv.obstacle_input_markers(PAPER.obstacles, 'map', 1))
-        planner._on_goal(pose_msg(GOAL))
-        plan = planner._planner.plan
+        planner.intake.on_obstacles(conv.obstacle_input_markers(PAPER.obstacles, 'map', 1))
+        planner.commands.on_goal(pose_msg(GOAL))
+        worker = planner.worker
+        plan = worker._planner.plan
         late: List[np.ndarray] = []
 
         def plan_while_obstacles_arrive(start, goal, **options):
             result = plan(start, goal, **options)
             if not late:
                 late.append(result.smoothed_path[len(result.smoothed_path) // 2])
-                planner._on_obstacles(marker_array(
+                planner.intake.on_obstacles(marker_array(
                     marker('late', 0, Marker.SPHERE, late[0], (1.0, 1.0, 1.0))))
             return result
-        planner._planner.plan = plan_while_obstacles_arrive
+        worker._planner.plan = plan_while_obstacles_arrive
 
-        planner._step(planner._take_snapshot())
+        worker._step(worker._take_snapshot())
         assert published == [], 'a plan that collides with the newest obstacles went out'
         assert diagnostics[-1]['event'] == 'plan_discarded', diagnostics[-1]
-        planner._step(planner._take_snapshot())
+        worker._step(worker._take_snapshot())
         assert len(published) == 1
         values = diagnostics[-1]
         assert values['event'] == 'plan' and values['status'] == 'ok', values
         assert 'while planning' in values['reason'], values
         assert values['obstacles_version'] == values['obstacles_checked_version'] == 2
         obstacles = ObstacleSet(list(PAPER.obstacles.items) + [Sphere(late[0], 0.5)])
-        assert min_clearance(planner._latched.smoothed_path, obstacles) >= GAMMA - TOL
+        assert min_clearance(planner.in_force.latched().smoothed_path, obstacles) >= GAMMA - TOL
     finally:
         if planner is not None:
             planner.close()

@@ -346,7 +346,8 @@ CATALOGUE = (
          PARAMETER_REFUSED, None, 'max_obstacle_size must be in (0.0, 1000000.0], got 0.0',
          send={'max_obstacle_size': 0.0}),
     Case('param_algorithm_unknown', 'parameter', "algorithm = 'foo'", PARAMETER_REFUSED, None,
-         "algorithm must be one of dijkstra, astar, adaptive, octile, weighted, got 'foo'",
+         'algorithm must be one of dijkstra, astar, adaptive, octile, weighted, bounded, '
+         "got 'foo'",
          send={'algorithm': 'foo'}, covered_by=PLANNING_PARAMS),
     Case('param_smoothing_unknown', 'parameter', "smoothing = 'bezier'", PARAMETER_REFUSED,
          None, "smoothing must be one of chord, index, none, got 'bezier'",
@@ -735,9 +736,9 @@ def test_map_file_refused_at_start_up(case_id: str, tmp_path: Path) -> None:
     try:
         node = PlannerNode(context=context, parameter_overrides=overrides)
         published = []
-        node._publish_diagnostics = (
+        node.diagnostics.publish = (
             lambda stamp_ns, level, text, values: published.append((level, text, dict(values))))
-        node._publish_map_status()
+        node.status.publish_map_status()
         level, text, values = published[-1]
         assert values['event'] == 'map_status', values
         if case.outcome == ACCEPTED:
@@ -756,17 +757,16 @@ def test_map_file_refused_at_start_up(case_id: str, tmp_path: Path) -> None:
         assert case.reason in values['map_refused'], values
         assert 'map_file: 0 accepted, 1 refused' in values['map_sources'], values
         # A goal is refused with the reason, as if no map had arrived: code 200.
-        node._on_goal(pose_msg(GOAL))
+        node.commands.on_goal(pose_msg(GOAL))
         level, text, values = published[-1]
         assert values['event'] == 'plan' and values['status'] == 'no_map', values
         assert values['status_code'] == case.code and case.reason in values['message'], values
         assert level == DiagnosticStatus.ERROR
-        with node._wake:
-            assert node._goal is None
+        assert node.inputs.active_goal() is None
         # So is a Nav2 request, before it reaches the planner.
         request = nav2_interfaces._Request('ComputePathToPose', GOAL, GOAL_ORIENTATION, 'map',
                                            'adaptive')
-        outcome = node._nav2._plan(request, None, None)
+        outcome = node.nav2._plan(request, None, None)
         assert outcome.status is PlanStatus.INVALID_INPUT and outcome.message == reason
     finally:
         if node is not None:

@@ -45,7 +45,7 @@ Semantics, as Nav2's planner server:
 Without nav2_msgs (a venv whose set-up could not build it) the action servers are off, the node
 logs that once with the reason, and ``get_plan`` and the topics work as before.
 
-One module, though long (about 600 lines): the three servers share the request queue to the
+One module, though long (about 670 lines): the three servers share the request queue to the
 planning worker, the frame and tolerance checks and the error-code mapping.
 """
 

@@ -1,32 +1,42 @@
 """The plan in force of the planner node: releasing a plan, re-checking it, withdrawing it.
 
-A mixin of :class:`~uav_global_planner.ros.planner_node.PlannerNode`.
+A part of :class:`~uav_global_planner.ros.planner_node.PlannerNode`.
 
-:meth:`PlanInForce.release` is the one gate every plan passes before anyone sees it, whoever
-asked (``goal_pose``, both Nav2 actions, ``GetPlan``): under the publish lock it certifies the
-plan's curve against the newest map the node holds when that map is newer than the one the plan
-was certified on, then latches it on ``plan``, ``unsmoothed_plan`` and ``trajectory`` (or only
-serialises it, for a query) or refuses it with the reason. The map intake installs a new map
-under the same lock, after re-checking the plan in force against it (ahead of the vehicle first)
-and withdrawing it with empty messages and an ERROR status when the map makes it collide. So a
-plan handed to a client is in force (when published) and clear of the newest map at that
-moment; a map after that withdraws it on ``plan`` like any other. ``export_mission`` reads the
-plan in force through :meth:`PlanInForce.plan_for_export`, under the same lock.
+:meth:`PlanInForce.release` is the one gate every plan passes before anyone sees it, whoever asked
+(``goal_pose``, both Nav2 actions, ``GetPlan``): under the release lock it certifies the plan's
+curve against the newest map the node holds when that map is newer than the one the plan was
+certified on, then latches it on ``plan``, ``unsmoothed_plan`` and ``trajectory`` (or only
+serialises it, for a query) or refuses it with the reason. The map intake installs a new map under
+the same lock (:meth:`PlanInForce.install_map`), after re-checking the plan in force against it
+(ahead of the vehicle first) and withdrawing it with empty messages and an ERROR status when the
+map makes it collide. So a plan handed to a client is in force (when published) and clear of the
+newest map at that moment; a map after that withdraws it on ``plan`` like any other.
+``export_mission`` reads the plan in force through :meth:`PlanInForce.plan_for_export`, under the
+same lock.
 """
 
+from contextlib import contextmanager
 from dataclasses import dataclass
-from typing import Callable, Dict, Optional, Tuple, TypeVar
+import threading
+from typing import Callable, Dict, Iterator, Optional, Tuple, TypeVar
 
 from diagnostic_msgs.msg import DiagnosticStatus
+from nav_msgs.msg import Path
 import numpy as np
+from rclpy.node import Node
+from trajectory_msgs.msg import MultiDOFJointTrajectory
 
 from uav_global_planner.core.map.live_map import LiveMap
 from uav_global_planner.core.planner import certify_plan, ClearanceVerdict
 from uav_global_planner.core.result import PlanResult
 from uav_global_planner.ros import conversions as conv
-from uav_global_planner.ros.node_attributes import NodeAttributes
+from uav_global_planner.ros.node_diagnostics import NodeDiagnostics
+from uav_global_planner.ros.node_plan_inputs import PlanningInputs
 from uav_global_planner.ros.node_state import InForce
+from uav_global_planner.ros.plan_writer import PlanWriter
+from uav_global_planner.ros.qos import LATCHED_QOS
 from uav_global_planner.ros.start_source import StartSource
+from uav_global_planner.ros.takeover import Settlement, Takeover, TakeoverPredictor
 
 T = TypeVar('T')
 
@@ -78,22 +88,92 @@ class ExportablePlan:
     live: LiveMap
 
 
-class PlanInForce(NodeAttributes):
+class PlanInForce:
     """Publishing, checking and withdrawing the latched plan.
 
-    Owns ``_in_force`` and ``_latched`` (guarded by ``_publish_lock``).
+    Its re-entrant lock, ``_release_lock``, guards the plan in force (``_in_force``, and
+    ``_latched``: the plan latched on ``plan``), the ``plan``, ``unsmoothed_plan`` and
+    ``trajectory`` publishers, and the installation of a new map (:meth:`install_map`), so
+    that no plan goes out unchecked against a map installed meanwhile. It is taken before the
+    planning inputs' condition when both are held.
+
+    Parameters
+    ----------
+    node : rclpy.node.Node
+        Gets the ``plan``, ``unsmoothed_plan`` and ``trajectory`` publishers.
+    inputs : PlanningInputs
+        The newest map, the vehicle's position and the settings in force.
+    diagnostics : NodeDiagnostics
+    plan_writer : PlanWriter
+        Serialises plans (CDR bytes, checked once per process).
+    takeover : TakeoverPredictor
+        Settles the takeover of plans made in flight.
     """
+
+    def __init__(self, node: Node, inputs: PlanningInputs, diagnostics: NodeDiagnostics,
+                 plan_writer: PlanWriter, takeover: TakeoverPredictor) -> None:
+        self._node = node
+        self._log = node.get_logger()
+        self._inputs = inputs
+        self._diagnostics = diagnostics
+        self._plan_writer = plan_writer
+        self._takeover = takeover
+        self._release_lock = threading.RLock()
+        # The plan latched on ``plan`` (None: none, or withdrawn) and the plan in force.
+        self._latched: Optional[PlanResult] = None
+        self._in_force: Optional[InForce] = None
+        self._plan_pub = node.create_publisher(Path, 'plan', LATCHED_QOS)
+        self._unsmoothed_pub = node.create_publisher(Path, 'unsmoothed_plan', LATCHED_QOS)
+        self._trajectory_pub = node.create_publisher(MultiDOFJointTrajectory, 'trajectory',
+                                                     LATCHED_QOS)
+
+    @contextmanager
+    def held(self) -> Iterator[None]:
+        """Hold the release lock: no map is installed and no plan released or withdrawn
+        meanwhile (the worker holds it from a plan's last check to its release)."""
+        with self._release_lock:
+            yield
+
+    def current(self) -> Optional[InForce]:
+        """The plan in force (None: none)."""
+        with self._release_lock:
+            return self._in_force
+
+    def latched(self) -> Optional[PlanResult]:
+        """The plan latched on ``plan`` (None: none, or withdrawn)."""
+        with self._release_lock:
+            return self._latched
+
+    def install_map(self, live: LiveMap, recheck: bool,
+                    install: Callable[[Optional[InForce]], None]) -> None:
+        """Install a new map: under the release lock, check the plan in force against ``live``
+        (``recheck``: its obstacles changed) and withdraw it if it collides, then call
+        ``install(withdrawn plan or None)``, which hands the map to the worker. No plan is
+        released between the check and the installation (:meth:`release` certifies against
+        the map installed)."""
+        with self._release_lock:
+            withdrawn = self._recheck_in_force(live) if recheck else None
+            install(withdrawn)
+
+    def settle_takeover(self, takeover: Takeover, result: PlanResult) -> Settlement:
+        """How a successful plan from ``takeover`` goes out now: its stamp, and why it should
+        not (the worker, just before publishing)."""
+        with self._release_lock:
+            vehicle = self._inputs.vehicle_position()
+            distance = self._inputs.current_settings().start_replan_distance
+            return self._takeover.settle(takeover, result.trajectory, self._in_force, vehicle,
+                                         distance)
 
     def _latch(self, result: PlanResult, frame: str, stamp_ns: int,
                orientation: Tuple[float, ...], start_source: StartSource, checked_version: int,
                goal_serial: Optional[int] = None) -> bytes:
         """Publish and latch a plan checked against map ``checked_version`` (the newest: the
-        caller holds the publish lock, see :meth:`release`); return the serialised ``plan``."""
+        caller holds the release lock, see :meth:`release`); return the serialised ``plan``."""
         # Serialised from the arrays: the messages of conv.plan_to_path and friends, without
         # building hundreds of message objects (milliseconds per plan).
         writer = self._plan_writer
-        period = self._current_settings().trajectory_sample_period
-        with self._publish_lock:
+        period = self._inputs.current_settings().trajectory_sample_period
+        with self._release_lock:
             plan = writer.plan_path(result, frame, stamp_ns, orientation)
             self._plan_pub.publish(plan)
             self._unsmoothed_pub.publish(
@@ -104,16 +184,15 @@ class PlanInForce(NodeAttributes):
             # A plan stamped ahead (a replan in flight) takes over at its stamp: until then
             # the vehicle flies the one before, which a replan meanwhile must continue.
             previous = self._in_force
-            now_ns = self.node.get_clock().now().nanoseconds
+            now_ns = self._node.get_clock().now().nanoseconds
             if previous is not None and (stamp_ns <= now_ns or previous.frame_id != frame):
                 previous = None
             if previous is not None and previous.stamp_ns <= now_ns:
                 previous.previous = None
             self._in_force = InForce(result, frame, stamp_ns, start_source, checked_version,
                                      goal_serial, previous)
-        with self._wake:
-            # Only a plan for the active goal is replanned once the vehicle's position arrives.
-            self._in_force_source = start_source if goal_serial is not None else None
+        # Only a plan for the active goal is replanned once the vehicle's position arrives.
+        self._inputs.set_in_force_source(start_source if goal_serial is not None else None)
         return plan
 
     def newest_map_verdict(self, result: PlanResult, checked_version: int,
@@ -122,10 +201,9 @@ class PlanInForce(NodeAttributes):
         """The newest map the node holds, and ``result``'s certificate against it when it is
         newer than map ``checked_version`` (None when it is that map). ``position``: where the
         vehicle is, when the plan starts there (only the curve ahead of it matters); None
-        certifies the whole curve. Holds the publish lock, so no map is installed meanwhile."""
-        with self._publish_lock:
-            with self._wake:
-                newest = self._map
+        certifies the whole curve. Holds the release lock, so no map is installed meanwhile."""
+        with self._release_lock:
+            newest = self._inputs.newest_map()
             if newest.version == checked_version:
                 return None, newest
             return self._certify_on(result, newest, position), newest
@@ -161,7 +239,7 @@ class PlanInForce(NodeAttributes):
         -------
         Release
         """
-        with self._publish_lock:
+        with self._release_lock:
             verdict, newest = self.newest_map_verdict(result, checked_version, position)
             if verdict is not None and not verdict.clear:
                 where = ('' if verdict.blocked_at is None
@@ -179,13 +257,13 @@ class PlanInForce(NodeAttributes):
 
     def plan_for_export(self) -> Tuple[Optional[ExportablePlan], str]:
         """The plan in force and the newest map it keeps clear of, or (None, why not)."""
-        with self._publish_lock:
+        with self._release_lock:
             in_force = self._in_force
             if in_force is None:
                 return None, ('no plan in force (none was published on plan yet, or it was '
                               'withdrawn)')
             verdict, newest = self.newest_map_verdict(in_force.result, in_force.checked_version,
-                                                      self._vehicle_position())
+                                                      self._inputs.vehicle_position())
             if verdict is not None:
                 in_force.checked_version = newest.version
                 if not verdict.clear:
@@ -198,15 +276,10 @@ class PlanInForce(NodeAttributes):
         """Run ``action`` while the plan stamped ``stamp_ns`` [ns] is in force (under the publish
         lock: no map is installed and no plan released meanwhile); (False, None) without
         running it when that plan was withdrawn or replaced."""
-        with self._publish_lock:
+        with self._release_lock:
             if self._in_force is None or self._in_force.stamp_ns != stamp_ns:
                 return False, None
             return True, action()
-
-    def _vehicle_position(self) -> Optional[np.ndarray]:
-        """The vehicle's position [m] (None: only the start parameter is known)."""
-        with self._wake:
-            return self._start if self._start_source != StartSource.PARAMETER else None
 
     def _certify_on(self, result: PlanResult, live: LiveMap,
                     position: Optional[np.ndarray]) -> ClearanceVerdict:
@@ -219,27 +292,26 @@ class PlanInForce(NodeAttributes):
     def _recheck_in_force(self, live: LiveMap) -> Optional[InForce]:
         """Certify the plan in force against a new map at once (ahead of the vehicle first);
         withdraw it there and then if the map makes it collide. Returns the withdrawn plan."""
-        with self._publish_lock:
+        with self._release_lock:
             in_force = self._in_force
             if in_force is None or in_force.checked_version >= live.version:
                 return None
-            verdict = self._certify_on(in_force.result, live, self._vehicle_position())
+            verdict = self._certify_on(in_force.result, live, self._inputs.vehicle_position())
             in_force.checked_version = live.version
             if verdict.clear:
                 return None
-            self._withdraw_in_force(in_force.frame_id, 'the new map makes it collide', verdict,
-                                    live)
+            self.withdraw(in_force.frame_id, 'the new map makes it collide', verdict, live)
             return in_force
 
-    def _withdraw_in_force(self, frame: str, why: str, verdict: Optional[ClearanceVerdict],
-                           live: Optional[LiveMap] = None) -> None:
+    def withdraw(self, frame: str, why: str, verdict: Optional[ClearanceVerdict],
+                 live: Optional[LiveMap] = None) -> None:
         """Withdraw the plan in force (if any) with empty messages and an ERROR status."""
-        with self._publish_lock:
+        with self._release_lock:
             if self._in_force is None:
                 return
             in_force = self._in_force
-            stamp_ns = self.node.get_clock().now().nanoseconds
-            self._withdraw_plan(frame, stamp_ns, log=False)  # logged below, with the reason
+            stamp_ns = self._node.get_clock().now().nanoseconds
+            self.withdraw_plan(frame, stamp_ns, log=False)  # logged below, with the reason
         where = ''
         values: Dict[str, object] = {'event': 'plan_withdrawn', 'status': 'withdrawn',
                                      'plan_withdrawn': True, 'reason': why,
@@ -254,21 +326,20 @@ class PlanInForce(NodeAttributes):
         text = (f'plan in force withdrawn (empty plan and trajectory published: hold position): '
                 f'{why}{where}')
         self._log.error(text)
-        values.update(self._settings_values(self._current_settings()))
+        values.update(self._diagnostics.settings_values(self._inputs.current_settings()))
         values['message'] = text
-        self._publish_diagnostics(stamp_ns, DiagnosticStatus.ERROR, text, values)
+        self._diagnostics.publish(stamp_ns, DiagnosticStatus.ERROR, text, values)
 
-    def _withdraw_plan(self, frame: str, stamp_ns: int, log: bool = True) -> None:
+    def withdraw_plan(self, frame: str, stamp_ns: int, log: bool = True) -> None:
         """Replace the latched plan, unsmoothed plan and trajectory by empty ones."""
-        with self._publish_lock:
+        with self._release_lock:
             empty = np.empty((0, 3))
             self._plan_pub.publish(conv.points_to_path(empty, frame, stamp_ns))
             self._unsmoothed_pub.publish(conv.points_to_path(empty, frame, stamp_ns))
             self._trajectory_pub.publish(conv.empty_trajectory(frame, stamp_ns))
             self._latched = None
             self._in_force = None
-        with self._wake:
-            self._in_force_source = None
+        self._inputs.set_in_force_source(None)
         if log:
             self._log.warning('withdrew the plan in force (published an empty plan and '
                               'trajectory): it no longer keeps gamma from the obstacles')

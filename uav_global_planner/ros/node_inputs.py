@@ -1,6 +1,5 @@
-"""Goal and start inputs of the planner node, and the report of a refused message.
+"""Goal and start inputs of the planner node: a part of the node, run on the executor.
 
-A mixin of :class:`~uav_global_planner.ros.planner_node.PlannerNode`, run on the executor:
 ``goal_pose`` sets the active goal (refused while the map is missing), ``odom`` and
 ``start_pose`` the start (the twist and heading of ``odom`` also go to the takeover predictor,
 for replans in flight); a refused message keeps the previous state and is reported on the
@@ -13,50 +12,63 @@ from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Odometry
 import numpy as np
+from rclpy.node import Node
 
 from uav_global_planner.core.errors import InvalidInputError
 from uav_global_planner.core.status import NAV2_GOAL_OUTSIDE_MAP, NAV2_UNKNOWN
 from uav_global_planner.ros import conversions as conv
-from uav_global_planner.ros.node_attributes import NodeAttributes
-from uav_global_planner.ros.node_state import Goal
-from uav_global_planner.ros.parameters import MAP_SOURCES, NodeSettings
+from uav_global_planner.ros.node_diagnostics import NodeDiagnostics
+from uav_global_planner.ros.node_intake import MapIntake
+from uav_global_planner.ros.node_plan_inputs import PlanningInputs
+from uav_global_planner.ros.parameters import NodeSettings
+from uav_global_planner.ros.qos import COMMAND_QOS, SENSOR_QOS
 from uav_global_planner.ros.start_source import StartSource
-from uav_global_planner.ros.takeover import odometry_velocity
+from uav_global_planner.ros.takeover import odometry_velocity, TakeoverPredictor
 
 #: Diagnostics status of a goal refused because the map is missing.
 NO_MAP_STATUS = 'no_map'
 
 
-class CommandInputs(NodeAttributes):
-    """Goal and start callbacks; write ``_goal`` and ``_start`` (under ``_wake``)."""
+class CommandInputs:
+    """The ``goal_pose``, ``odom`` and ``start_pose`` subscriptions.
 
-    def _map_missing(self, settings: NodeSettings) -> Optional[str]:
-        """Why goals cannot be planned yet for want of a map, or None (caller holds _wake)."""
-        refusal = self.map_refusal()
-        if refusal:
-            # Read once at start-up: planning without the map asked for would fly through it.
-            return refusal
-        if settings.plan_without_map:
-            return None
-        sources = self._sources
-        if settings.required_map_sources == ('any',):
-            if any(sources[name].delivered for name in MAP_SOURCES):
-                return None
-            refused = [f'{name} refused ({state.last_refusal})'
-                       for name, state in sources.items() if state.refused]
-            return ('no map yet: none of the map sources (obstacles, obstacle_cloud, map_file) '
-                    'has delivered' + (': ' + '; '.join(refused) if refused else '')
-                    + '; publish the map first, or set plan_without_map to plan in open air')
-        missing = [name for name in settings.required_map_sources
-                   if not sources[name].delivered]
-        if not missing:
-            return None
-        return (f'no map yet: required_map_sources {", ".join(missing)} not delivered; publish '
-                'them first, or set plan_without_map to plan in open air')
+    No state and no lock of its own: an accepted goal or position goes to the planning inputs
+    (their condition guards it), odometry's motion to the takeover predictor (its own lock).
 
-    def _on_goal(self, msg: PoseStamped) -> None:
+    Parameters
+    ----------
+    node : rclpy.node.Node
+        Gets the subscriptions.
+    inputs : PlanningInputs
+    intake : MapIntake
+        Whether the map goals need has arrived.
+    diagnostics : NodeDiagnostics
+    takeover : TakeoverPredictor
+    """
+
+    def __init__(self, node: Node, inputs: PlanningInputs, intake: MapIntake,
+                 diagnostics: NodeDiagnostics, takeover: TakeoverPredictor) -> None:
+        self._node = node
+        self._log = node.get_logger()
+        self._inputs = inputs
+        self._intake = intake
+        self._diagnostics = diagnostics
+        self._takeover = takeover
+        self._goal_sub = node.create_subscription(PoseStamped, 'goal_pose', self.on_goal,
+                                                  COMMAND_QOS)
+        self._odom_sub = node.create_subscription(Odometry, 'odom', self._on_odom, SENSOR_QOS)
+        self._start_sub = node.create_subscription(PoseStamped, 'start_pose',
+                                                   self._on_start_pose, COMMAND_QOS)
+
+    @property
+    def goal_topic(self) -> str:
+        """The resolved name of the goal topic."""
+        return self._goal_sub.topic_name
+
+    def on_goal(self, msg: PoseStamped) -> None:
+        """A goal (executor; in-process use and tests may call it directly)."""
         topic = self._goal_sub.topic_name
-        settings = self._current_settings()
+        settings = self._inputs.current_settings()
         try:
             position, orientation = conv.pose_stamped_to_pose(msg, settings.frame_id, topic)
             config = settings.config
@@ -68,16 +80,14 @@ class CommandInputs(NodeAttributes):
                     f'{list(config.bounds_min)} .. {list(config.bounds_max)}',
                     NAV2_GOAL_OUTSIDE_MAP)
         except InvalidInputError as error:
-            self._refuse(topic, error)
+            self._diagnostics.refuse(topic, error)
             return
-        with self._wake:
-            missing = self._map_missing(settings)
-            if missing is None:
-                self._goal_serial += 1
-                self._goal = Goal(position, orientation, self._goal_serial)
-                self._goal_changed = True
-                self._wake.notify_all()
-        if missing is not None:
+        # The sources count as delivered only once the map holding them is installed, so an
+        # accepted goal is planned on that map.
+        missing = self._intake.map_missing(settings)
+        if missing is None:
+            self._inputs.new_goal(position, orientation)
+        else:
             self._refuse_goal(position, settings, missing)
 
     def _refuse_goal(self, position: np.ndarray, settings: NodeSettings, reason: str) -> None:
@@ -86,18 +96,18 @@ class CommandInputs(NodeAttributes):
         self._log.warning(text)
         values = {'event': 'plan', 'status': NO_MAP_STATUS, 'status_code': NAV2_UNKNOWN,
                   'reason': 'new goal', 'message': text, 'goal': position}
-        values.update(self._settings_values(settings))
-        values.update(self._map_values())
-        self._publish_diagnostics(self.node.get_clock().now().nanoseconds,
+        values.update(self._diagnostics.settings_values(settings))
+        values.update(self._intake.map_values())
+        self._diagnostics.publish(self._node.get_clock().now().nanoseconds,
                                   DiagnosticStatus.ERROR, f'{NO_MAP_STATUS}: {text}', values)
 
     def _on_odom(self, msg: Odometry) -> None:
         topic = self._odom_sub.topic_name
-        frame = self._current_settings().frame_id
+        frame = self._inputs.current_settings().frame_id
         try:
             position = conv.odometry_to_point(msg, frame, topic)
         except InvalidInputError as error:
-            self._refuse(topic, error, throttle=True)
+            self._diagnostics.refuse(topic, error, throttle=True)
             return
         # The twist and heading feed replans in flight (ros/takeover.py); a non-finite twist
         # only leaves the velocity unknown.
@@ -110,40 +120,14 @@ class CommandInputs(NodeAttributes):
         except InvalidInputError:
             yaw = 0.0
         self._takeover.on_odometry(position, velocity, yaw)
-        self._set_start(position, StartSource.ODOM)
+        self._inputs.set_vehicle(position, StartSource.ODOM)
 
     def _on_start_pose(self, msg: PoseStamped) -> None:
         topic = self._start_sub.topic_name
         try:
-            position = conv.pose_stamped_to_point(msg, self._current_settings().frame_id,
+            position = conv.pose_stamped_to_point(msg, self._inputs.current_settings().frame_id,
                                                   topic)
         except InvalidInputError as error:
-            self._refuse(topic, error)
+            self._diagnostics.refuse(topic, error)
             return
-        self._set_start(position, StartSource.START_POSE)
-
-    def _set_start(self, position: np.ndarray, source: StartSource) -> None:
-        with self._wake:
-            self._start, self._start_source = position, source
-            if self._in_force_source == StartSource.PARAMETER and self._goal is not None:
-                # The plan in force began at the start parameter, not where the vehicle is.
-                self._in_force_source = None
-                self._replan_request = (f'the vehicle position arrived on {source}; the plan '
-                                        'in force started at the start parameter')
-                self._wake.notify_all()
-
-    def _refuse(self, topic: str, error: Exception, throttle: bool = False) -> None:
-        """Log a refused message and report it on /diagnostics; the previous state stays."""
-        code = getattr(error, 'code', NAV2_UNKNOWN)
-        text = f'refused message on {topic}: {error}'
-        if throttle:
-            # Odometry arrives at sensor rate; one log line per second is enough.
-            self._log.warning(text, throttle_duration_sec=1.0)
-        else:
-            self._log.warning(text)
-        settings = self._current_settings()
-        values = {'event': 'input_rejected', 'status': 'rejected', 'status_code': code,
-                  'topic': topic, 'reason': str(error)}
-        values.update(self._settings_values(settings))
-        self._publish_diagnostics(self.node.get_clock().now().nanoseconds,
-                                  DiagnosticStatus.WARN, text, values)
+        self._inputs.set_vehicle(position, StartSource.START_POSE)

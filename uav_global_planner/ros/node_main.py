@@ -32,6 +32,17 @@ class RunnableNode(Protocol):
         """Stop the work and release the node."""
 
 
+def _log_compiled(node: Node) -> None:
+    """Log the one-off compilation of the planner's kernels during start-up (the warm-up), if
+    there was one: how long it took and where the kernels are cached for later starts."""
+    # Looked up, not imported: a node that plans nothing (the follower) never loads numba.
+    jit = sys.modules.get('uav_global_planner.core.jit')
+    if jit is None or jit.compile_seconds() <= 0.0:
+        return
+    node.get_logger().info(f"compiled the planner's kernels once ({jit.compile_seconds():.1f} s),"
+                           f' cached in {jit.cache_dir()}; later starts load them')
+
+
 def run_node(program: str, make: Callable[[], RunnableNode],
              args: Optional[List[str]] = None) -> int:
     """Initialise rclpy, build the node with ``make()`` and spin it until shutdown.
@@ -58,6 +69,7 @@ def run_node(program: str, make: Callable[[], RunnableNode],
         executor = SingleThreadedExecutor()
         executor.add_node(runnable.node)
         runnable.start()
+        _log_compiled(runnable.node)
         executor.spin()
     except (KeyboardInterrupt, ExternalShutdownException):
         pass

@@ -1,7 +1,7 @@
-"""State shared by the threads of the planner node: the executor, the map intake and the worker.
+"""Records of the planner node's parts, passed between its threads (executor, intake, worker).
 
-Each record says which lock guards it. :class:`Snapshot` is what one plan uses, copied under the
-node's lock when the plan begins.
+Each record says which part's lock guards it. :class:`Snapshot` is what one plan uses, copied
+from the planning inputs under their lock when the plan begins.
 """
 
 from collections import deque
@@ -38,7 +38,7 @@ class Goal:
 
 @dataclass(frozen=True, eq=False)
 class Snapshot:
-    """Everything one plan uses, copied under the lock when the plan begins.
+    """Everything one plan uses, copied from the planning inputs when the plan begins.
 
     ``obstacles`` and ``obstacles_version`` are those of ``map``, the consistent map (obstacles
     and inflated grid) the plan runs on.
@@ -60,7 +60,7 @@ class Snapshot:
 
 @dataclass
 class SourceState:
-    """What one map source has delivered (guarded by the node's lock).
+    """What one map source has delivered (guarded by the map intake's lock).
 
     Attributes
     ----------
@@ -101,7 +101,7 @@ class SourceState:
 
 @dataclass
 class InForce:
-    """The plan latched on ``plan`` (guarded by the publish lock).
+    """The plan latched on ``plan`` (guarded by the plan in force's release lock).
 
     ``stamp_ns`` is the plan's time 0 (its header stamp). A plan that takes over in the future
     keeps the plan it replaces as ``previous``: until its stamp the vehicle still flies that

@@ -1,63 +1,75 @@
-"""Diagnostics and status publishing of the planner node.
+"""The status timers of the planner node: a part of the node.
 
-A mixin of :class:`~uav_global_planner.ros.planner_node.PlannerNode`: every status goes out on
-``/diagnostics`` through :meth:`StatusPublishing._publish_diagnostics` (any thread); the timers
-publish the map status (1 Hz), the obstacle markers (only when someone subscribes) and report
-another node of the same name.
+:class:`NodeStatus` runs the timers: the map status on ``/diagnostics`` (1 Hz, through
+:class:`~uav_global_planner.ros.node_diagnostics.NodeDiagnostics`), the obstacle markers on
+``planner_markers`` (only when someone subscribes) and the report of another node of the same
+name.
 """
 
-from dataclasses import replace
-from typing import Dict, Mapping, Optional
+from typing import Dict, Optional, Tuple
 
 from diagnostic_msgs.msg import DiagnosticStatus
 import numpy as np
+from rclpy.node import Node
+from visualization_msgs.msg import MarkerArray
 
-from uav_global_planner.core.map.live_map import LiveMap
+from uav_global_planner.core.io.mapfiles import MapPoints
 from uav_global_planner.ros import conversions as conv
-from uav_global_planner.ros.geofence_source import describe
-from uav_global_planner.ros.node_attributes import NodeAttributes
-from uav_global_planner.ros.parameters import NodeSettings
+from uav_global_planner.ros.node_diagnostics import NodeDiagnostics
+from uav_global_planner.ros.node_intake import MapIntake
+from uav_global_planner.ros.node_plan_inputs import PlanningInputs
+from uav_global_planner.ros.qos import LATCHED_QOS
 from uav_global_planner.ros.terrain_source import terrain_values
 
+#: Marker-publishing check period [s]: markers go out only when someone subscribes.
+_MARKER_PERIOD_S = 0.5
 
-class StatusPublishing(NodeAttributes):
-    """Diagnostics, markers and map status; own ``_markers_published_key``."""
+#: Period of the ``map_status`` diagnostics [s] (as diagnostic_updater's 1 Hz).
+_MAP_STATUS_PERIOD_S = 1.0
 
-    def _settings_values(self, settings: NodeSettings) -> Dict[str, object]:
-        config = settings.config
-        return {'algorithm': config.algorithm, 'resolution_m': config.resolution,
-                'safety_margin_m': config.safety_margin,
-                'adaptive_threshold_m': config.adaptive_threshold,
-                'climb_weight': config.climb_weight, 'descent_weight': config.descent_weight,
-                'geofence': describe(self._airspace, settings.geofence_file),
-                'frame_id': settings.frame_id}
+#: Period of the check for another node of the same fully qualified name [s].
+_DUPLICATE_CHECK_PERIOD_S = 2.0
 
-    def _map_values(self, live: Optional[LiveMap] = None) -> Dict[str, object]:
-        """What each map source delivered, which ones' newest message was refused, and the
-        age of the newest map message [s] (any thread)."""
-        with self._wake:
-            sources = {name: replace(state) for name, state in self._sources.items()}
-            map_stamp = self._map_stamp_ns
-            live = self._map if live is None else live
-        refused = [f'{name} ({state.last_refusal})' for name, state in sources.items()
-                   if state.refused_last]
-        values: Dict[str, object] = {
-            'map_sources': '; '.join(f'{name}: {state.summary()}'
-                                     for name, state in sources.items()
-                                     if name != 'map_file' or state.received),
-            'map_refused': '; '.join(refused),
-            'map_version': live.version,
-        }
-        if map_stamp > 0:
-            values['map_age_s'] = max(
-                (self.node.get_clock().now().nanoseconds - map_stamp) * 1e-9, 0.0)
-        return values
+
+class NodeStatus:
+    """The status timers: map status, obstacle markers, another node of the same name.
+
+    No lock: its state (the markers last published, the duplicates last reported) belongs to
+    the executor, which runs the timers (and :meth:`check_duplicate_name` at start-up, before
+    spinning).
+
+    Parameters
+    ----------
+    node : rclpy.node.Node
+        Gets the ``planner_markers`` publisher and the timers.
+    inputs : PlanningInputs
+    intake : MapIntake
+    diagnostics : NodeDiagnostics
+    prior : MapPoints, optional
+        The map_file read at start-up (None: none, or refused).
+    """
+
+    def __init__(self, node: Node, inputs: PlanningInputs, intake: MapIntake,
+                 diagnostics: NodeDiagnostics, prior: Optional[MapPoints]) -> None:
+        self._node = node
+        self._log = node.get_logger()
+        self._inputs = inputs
+        self._intake = intake
+        self._diagnostics = diagnostics
+        self._prior = prior
+        self._markers_published_key: Optional[Tuple[object, ...]] = None
+        self._duplicates_reported = 0
+        self._markers_pub = node.create_publisher(MarkerArray, 'planner_markers', LATCHED_QOS)
+        self._marker_timer = node.create_timer(_MARKER_PERIOD_S, self._publish_markers)
+        self._status_timer = node.create_timer(_MAP_STATUS_PERIOD_S, self.publish_map_status)
+        self._duplicate_timer = node.create_timer(_DUPLICATE_CHECK_PERIOD_S,
+                                                  self.check_duplicate_name)
 
     def _prior_map_values(self) -> Dict[str, object]:
         """What the ``map_file`` load read, dropped (and why) and kept, and its extent; or why
         the file was refused (empty when there is no map_file)."""
-        if self._prior_refusal:
-            return {'map_file_status': 'refused', 'map_file_refused': self._prior_refusal}
+        if self._intake.prior_refusal:
+            return {'map_file_status': 'refused', 'map_file_refused': self._intake.prior_refusal}
         if self._prior is None:
             return {}
         values: Dict[str, object] = {'map_file_status': 'ok'}
@@ -78,24 +90,9 @@ class StatusPublishing(NodeAttributes):
                 'map_file_report': report.summary()})
         return values
 
-    def _publish_diagnostics(self, stamp_ns: int, level: bytes, message: str,
-                             values: Mapping[str, object]) -> None:
-        msg = conv.diagnostic_array(stamp_ns, self._diag_name, 'uav_global_planner', level,
-                                    message, values)
-        # The executor thread (refusals), the intake (withdrawals) and the worker (plans)
-        # publish here.
-        with self._diagnostics_lock:
-            self._diagnostics_pub.publish(msg)
-
-    def publish_diagnostics(self, stamp_ns: int, level: bytes, message: str,
-                            values: Mapping[str, object]) -> None:
-        """Publish one status of this node on ``/diagnostics`` (any thread)."""
-        self._publish_diagnostics(stamp_ns, level, message, values)
-
     def _publish_markers(self) -> None:
         """Timer: publish the obstacles in use when they changed and someone listens."""
-        with self._wake:
-            live, settings = self._map, self._settings
+        live, settings = self._inputs.newest_map(), self._inputs.current_settings()
         key = (live.version, settings.config.safety_margin, settings.frame_id)
         if key == self._markers_published_key:
             return
@@ -103,21 +100,19 @@ class StatusPublishing(NodeAttributes):
         if self._markers_pub.get_subscription_count() == 0:
             return
         self._markers_pub.publish(conv.obstacle_markers(
-            live.obstacles, settings.frame_id, self.node.get_clock().now().nanoseconds,
+            live.obstacles, settings.frame_id, self._diagnostics.now_ns(),
             settings.config.safety_margin))
         self._markers_published_key = key
 
-    def _publish_map_status(self) -> None:
+    def publish_map_status(self) -> None:
         """Timer: the map's state on /diagnostics (``event: map_status``), WARN while goals
         are refused for want of a map or a source's newest message was refused."""
-        settings = self._current_settings()
-        with self._wake:
-            missing = self._map_missing(settings)
-            sources = {name: replace(state) for name, state in self._sources.items()}
-            live = self._map
-            intake_s, index_s, mask_s = self._intake_times
-            latencies, self._cloud_latencies = self._cloud_latencies, []
-        values = self._map_values(live)
+        settings = self._inputs.current_settings()
+        missing = self._intake.map_missing(settings)
+        sources = self._intake.sources()
+        live = self._inputs.newest_map()
+        (intake_s, index_s, mask_s), latencies = self._intake.take_statistics()
+        values = self._intake.map_values(live)
         if latencies:
             # Cloud stamp to its map in the planner's hands, over the last period [s].
             values['cloud_latency_count'] = len(latencies)
@@ -136,10 +131,10 @@ class StatusPublishing(NodeAttributes):
                        'last_mask_s': mask_s, 'last_mask_full': live.update.full,
                        'last_mask_tiles': live.update.tiles,
                        'fallback_grid_kept': live.fallback is not None})
-        values.update(self._settings_values(settings))
+        values.update(self._diagnostics.settings_values(settings))
         values.update(self._prior_map_values())
-        values.update(terrain_values(self._terrain_state))
-        if self.map_refusal():
+        values.update(terrain_values(self._inputs.terrain()))
+        if self._inputs.map_refusal():
             level, text = DiagnosticStatus.ERROR, str(missing)
         elif missing:
             level, text = DiagnosticStatus.WARN, missing
@@ -147,12 +142,12 @@ class StatusPublishing(NodeAttributes):
             level, text = DiagnosticStatus.WARN, f'map incomplete: {values["map_refused"]}'
         else:
             level, text = DiagnosticStatus.OK, f'map version {live.version}'
-        self._publish_diagnostics(self.node.get_clock().now().nanoseconds, level, text, values)
+        self._diagnostics.publish(self._diagnostics.now_ns(), level, text, values)
 
-    def _check_duplicate_name(self) -> None:
+    def check_duplicate_name(self) -> None:
         """Timer (and start-up): another node with this fully qualified name is an error: two
         planners would latch competing plans on the same topics."""
-        node = self.node
+        node = self._node
         name, namespace = node.get_name(), node.get_namespace()
         try:
             count = sum(1 for other, space in node.get_node_names_and_namespaces()
@@ -173,5 +168,5 @@ class StatusPublishing(NodeAttributes):
         self._duplicates_reported = count
         values = {'event': 'duplicate_node', 'status': 'duplicate', 'nodes_with_this_name': count,
                   'node': node.get_fully_qualified_name(), 'message': text}
-        self._publish_diagnostics(node.get_clock().now().nanoseconds, DiagnosticStatus.ERROR,
+        self._diagnostics.publish(node.get_clock().now().nanoseconds, DiagnosticStatus.ERROR,
                                   text, values)

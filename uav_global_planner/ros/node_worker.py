@@ -1,34 +1,44 @@
 """The planning worker of the planner node: the only thread that touches the Planner.
 
-A mixin of :class:`~uav_global_planner.ros.planner_node.PlannerNode`. The worker takes a
+A part of :class:`~uav_global_planner.ros.planner_node.PlannerNode`. The worker takes a
 snapshot of the settings, map, start and goal when a plan begins (whatever arrives meanwhile is
 coalesced into at most one follow-up plan), plans, and publishes only a plan that keeps gamma
 from the newest map and still starts where the vehicle is (a plan made in flight starts where
 the vehicle will be when it takes over, and is stamped with that time:
 :mod:`~uav_global_planner.ros.takeover`); the Nav2 interfaces run their
-requests on it too (:meth:`PlanningWorker.submit`).
+requests on it too (:meth:`~uav_global_planner.ros.node_plan_inputs.PlanningInputs.submit`).
 """
 
 from dataclasses import replace
+import threading
 import time
 import traceback
 from typing import Any, Callable, Dict, Optional, Tuple
 
 from diagnostic_msgs.msg import DiagnosticStatus
 import numpy as np
+from rclpy.node import Node
 
 from uav_global_planner.core.budget import PlanStage
+from uav_global_planner.core.config import PlannerConfig
+from uav_global_planner.core.errors import InvalidInputError
+from uav_global_planner.core.map.live_map import LiveMap
+from uav_global_planner.core.map.unknown_space import unknown_from_map_files, UnknownSpace
 from uav_global_planner.core.planner import ClearanceVerdict, Planner
 from uav_global_planner.core.result import PlanResult
 from uav_global_planner.core.search.start_admission import Admission, admit, explain, GOAL, START
 from uav_global_planner.core.status import NAV2_CODE_BY_STATUS, NAV2_UNKNOWN, PlanStatus
 from uav_global_planner.ros import conversions as conv
 from uav_global_planner.ros.geofence_source import describe
-from uav_global_planner.ros.node_attributes import NodeAttributes
+from uav_global_planner.ros.node_diagnostics import NodeDiagnostics
+from uav_global_planner.ros.node_in_force import PlanInForce
+from uav_global_planner.ros.node_intake import MapIntake
+from uav_global_planner.ros.node_plan_inputs import PlanningInputs
 from uav_global_planner.ros.node_state import Goal, Snapshot
 from uav_global_planner.ros.parameters import NodeSettings
 from uav_global_planner.ros.start_source import StartSource
-from uav_global_planner.ros.takeover import FOLLOW_DISTANCE_M, Settlement, START_REFUSALS, Takeover
+from uav_global_planner.ros.takeover import (FOLLOW_DISTANCE_M, Settlement, START_REFUSALS,
+                                             Takeover, TakeoverPredictor)
 
 #: Consecutive plans dropped because the vehicle moved away from their start while they were
 #: computed; after that many the plan is published anyway (with a note), so a slow plan behind
@@ -44,37 +54,99 @@ _RETRY_ON_OBSTACLES = (PlanStatus.NO_VALID_PATH, PlanStatus.TIMEOUT, PlanStatus.
                        PlanStatus.GOAL_OCCUPIED)
 
 
-class PlanningWorker(NodeAttributes):
-    """The worker thread and its plans; own ``_planner``, ``_last_result`` and the replan state."""
+class PlanningWorker:
+    """The worker thread and its plans: the only thread that touches the :class:`Planner`.
+
+    No lock of its own: its state (the planner, the outcome of the last plan, the replan it owes
+    itself, the map applied to the planner) belongs to the worker thread. Its inputs are the
+    :class:`~uav_global_planner.ros.node_plan_inputs.PlanningInputs`, on whose condition it
+    waits for work; it publishes through the plan in force's gate.
+
+    Parameters
+    ----------
+    node : rclpy.node.Node
+        The node's clock and logger.
+    inputs : PlanningInputs
+    in_force : PlanInForce
+    intake : MapIntake
+        The map sources' state reported with a plan.
+    diagnostics : NodeDiagnostics
+    planner : Planner
+        The worker's from now on.
+    takeover : TakeoverPredictor
+    unknown_file : str
+        The OctoMap ``map_file`` whose unknown space the planner holds ('' for none): read
+        again for new bounds.
+    unknown_bounds : tuple
+        The bounds (min, max) [m] that unknown space was read for.
+    """
+
+    def __init__(self, node: Node, inputs: PlanningInputs, in_force: PlanInForce,
+                 intake: MapIntake, diagnostics: NodeDiagnostics, planner: Planner,
+                 takeover: TakeoverPredictor, unknown_file: str,
+                 unknown_bounds: Tuple[Tuple[float, ...], Tuple[float, ...]]) -> None:
+        self._node = node
+        self._log = node.get_logger()
+        self._inputs = inputs
+        self._in_force = in_force
+        self._intake = intake
+        self._diagnostics = diagnostics
+        self._planner = planner
+        self._takeover = takeover
+        self._unknown_file = unknown_file
+        self._unknown_bounds = unknown_bounds
+        # Outcome of the last plan attempt and the goal it was for.
+        self._last_result: Optional[PlanResult] = None
+        self._last_goal_serial = -1
+        # Why the active goal must be planned again although nothing flagged it.
+        self._replan_reason: Optional[str] = None
+        # The map applied to the planner, and whether the planner searches its mask.
+        self._applied_map: Optional[LiveMap] = None
+        self._grid_from_map = False
+        # Plans dropped in a row because the vehicle left their start while they were computed.
+        self._drift_replans = 0
+        self._thread = threading.Thread(target=self._run_worker, name='planner-worker',
+                                        daemon=True)
+
+    def start(self) -> None:
+        """Give the planner the map at start-up, compile the kernels and build the grid, then
+        start the worker thread."""
+        live = self._inputs.newest_map()
+        self._grid_from_map = self._planner.set_map(live.obstacles, live.blocked,
+                                                    live.grid_key)
+        self._applied_map = live
+        self._planner.warm_up()
+        self._thread.start()
+
+    def stop(self, timeout_s: float) -> None:
+        """Wait at most ``timeout_s`` [s] for the worker thread to end (the planning inputs
+        were told the node stops: a running plan is cancelled within milliseconds)."""
+        if self._thread.is_alive():
+            self._thread.join(timeout_s)
+
+    def grid_shape(self) -> Tuple[int, ...]:
+        """The planner's grid shape (cells; read at start-up, before the thread runs)."""
+        return tuple(self._planner.grid.shape)
 
     def _take_snapshot(self) -> Optional[Snapshot]:
         """Wait for work; copy what the next step needs and clear the change flags."""
-        with self._wake:
-            self._wake.wait_for(lambda: self._stopping or (
-                self._geofence_applied >= self._geofence_requested
-                and (self._goal_changed or self._settings_changed or self._map_changed
-                     or self._replan_request is not None or bool(self._jobs))))
-            if self._stopping:
-                return None
-            settings = self._settings
-            if self._start is not None:
-                start, source = self._start, self._start_source
-            else:
-                start, source = settings.start, StartSource.PARAMETER
-            live = self._map
-            previous = self._worker_map if self._worker_map is not None else self._applied_map
-            changed = previous is None or live.version != previous.version
-            snapshot = Snapshot(
-                settings=settings, settings_changed=self._settings_changed,
-                obstacles=live.obstacles, obstacles_changed=changed,
-                obstacles_version=live.version, obstacles_stamp_ns=self._obstacles_stamp_ns,
-                goal=self._goal, goal_changed=self._goal_changed, start=start,
-                start_source=source, map=live, replan_reason=self._replan_request)
-            # From here on the worker reads this map's mask: the intake writes others.
-            self._worker_map = live
-            self._settings_changed = self._map_changed = self._goal_changed = False
-            self._replan_request = None
-            return snapshot
+        return self._inputs.take_snapshot(self._applied_map)
+
+    def _follow_bounds(self, config: PlannerConfig) -> None:
+        """The unknown space of an OctoMap ``map_file`` within new bounds (read again from the
+        file; all of the bounds when it can no longer be read)."""
+        bounds = (tuple(config.bounds_min), tuple(config.bounds_max))
+        if not self._unknown_file or bounds == self._unknown_bounds:
+            return
+        try:
+            unknown = unknown_from_map_files([self._unknown_file], *bounds)
+        except InvalidInputError as error:
+            self._log.error(f'map_file: unknown space for the new bounds: {error}; all of the '
+                            'bounds count as unknown')
+            unknown = UnknownSpace(np.array(bounds[0])[None, :], np.array(bounds[1])[None, :],
+                                   self._unknown_file)
+        self._unknown_bounds = bounds
+        self._planner.set_unknown(unknown)
 
     def _run_worker(self) -> None:
         """Planning thread: the only thread that touches the Planner."""
@@ -86,22 +158,18 @@ class PlanningWorker(NodeAttributes):
                 self._step(snapshot)
                 self._run_jobs(snapshot)
             except Exception as error:  # noqa: BLE001 - a bug must not kill the planner
-                if self._is_stopping():
+                if self._inputs.is_stopping():
                     return  # publishers are gone during shutdown; nothing left to report
                 self._log.error(f'planning step failed: {error!r}\n{traceback.format_exc()}')
                 values = {'event': 'plan', 'status': 'error', 'status_code': NAV2_UNKNOWN,
                           'reason': repr(error)}
-                values.update(self._settings_values(snapshot.settings))
+                values.update(self._diagnostics.settings_values(snapshot.settings))
                 try:
-                    self._publish_diagnostics(self.node.get_clock().now().nanoseconds,
+                    self._diagnostics.publish(self._node.get_clock().now().nanoseconds,
                                               DiagnosticStatus.ERROR,
                                               f'planning failed: {error!r}', values)
                 except Exception:  # noqa: BLE001 - shutting down
                     return
-
-    def _is_stopping(self) -> bool:
-        with self._wake:
-            return self._stopping
 
     def _apply_map(self, snap: Snapshot) -> None:
         """Give the planner the snapshot's settings and map (its mask when it fits them)."""
@@ -155,8 +223,7 @@ class PlanningWorker(NodeAttributes):
             return None
         if not last.ok:
             return 'obstacles changed' if last.status in _RETRY_ON_OBSTACLES else None
-        with self._publish_lock:
-            in_force = self._in_force
+        in_force = self._in_force.current()
         if in_force is not None and in_force.result is last:
             return None
         if self._clear_ahead(last, snap):
@@ -191,11 +258,9 @@ class PlanningWorker(NodeAttributes):
         began = time.monotonic()
 
         def cancelled() -> bool:
-            with self._wake:
-                if (self._stopping or self._goal is None
-                        or (self._settings_changed and self._settings.config != settings.config)):
-                    return True
-                newer = self._goal.serial != goal.serial
+            now, newer = self._inputs.cancel_state(goal, settings)
+            if now:
+                return True
             return newer and time.monotonic() - began >= PREEMPT_GRACE_S
         return cancelled
 
@@ -208,8 +273,8 @@ class PlanningWorker(NodeAttributes):
         values: Dict[str, object] = {
             'event': 'progress', 'status': 'planning', 'stage': stage.value,
             'elapsed_s': elapsed_s, 'budget_s': budget_s, 'goal': goal.position}
-        values.update(self._settings_values(settings))
-        self._publish_diagnostics(self.node.get_clock().now().nanoseconds,
+        values.update(self._diagnostics.settings_values(settings))
+        self._diagnostics.publish(self._node.get_clock().now().nanoseconds,
                                   DiagnosticStatus.OK, text, values)
 
     def _admitted(self, point: np.ndarray, which: str, settings: NodeSettings) -> Admission:
@@ -229,29 +294,15 @@ class PlanningWorker(NodeAttributes):
         :data:`~uav_global_planner.ros.takeover.FOLLOW_DISTANCE_M` of the vehicle's newest
         odometry position; anywhere else the plan starts there from rest.
         """
-        with self._wake:
-            start, source = self._start, self._start_source
+        start, source = self._inputs.vehicle()
         if start is None:
             start, source = snap.start, snap.start_source
-        with self._publish_lock:
-            in_force = self._in_force
+        in_force = self._in_force.current()
         if request_start is not None and (
                 source != StartSource.ODOM
                 or float(np.linalg.norm(request_start - start)) > FOLLOW_DISTANCE_M):
             return self._takeover.at_rest(request_start)
         return self._takeover.predict(start, source, in_force)
-
-    def settle_takeover(self, takeover: Takeover, result: PlanResult) -> Settlement:
-        """How a successful plan from ``takeover`` goes out now: its stamp, and why it should
-        not (worker only; call it just before publishing)."""
-        # The publish lock before the node's lock, as everywhere.
-        with self._publish_lock:
-            with self._wake:
-                vehicle = (self._start if self._start_source != StartSource.PARAMETER
-                           else None)
-                distance = self._settings.start_replan_distance
-            return self._takeover.settle(takeover, result.trajectory, self._in_force, vehicle,
-                                         distance)
 
     def _plan_from(self, takeover: Takeover, start: np.ndarray, goal: Goal,
                    settings: NodeSettings) -> Tuple[PlanResult, Takeover, str]:
@@ -294,7 +345,7 @@ class PlanningWorker(NodeAttributes):
         if self._planner.fallback_builds != fallback_builds and self._grid_from_map:
             # This map needed the conservative grid: from now on the intake keeps it up to
             # date too, so later plans do not inflate it (a second or so on a large map).
-            self._builder.want_fallback = True
+            self._intake.keep_fallback_grid()
         if result.status is PlanStatus.CANCELED:
             self._cancelled(snap, goal, result)
             return
@@ -302,23 +353,23 @@ class PlanningWorker(NodeAttributes):
         frame = settings.frame_id
         drift_note = ''
         settlement: Optional[Settlement] = None
-        with self._publish_lock:
-            # No map is installed while the publish lock is held (see PlanInForce.release).
-            with self._wake:
-                newest_stamp_ns = self._obstacles_stamp_ns
-                vehicle = self._start if self._start_source != StartSource.PARAMETER else None
-                goal_current = self._goal is not None and self._goal.serial == goal.serial
+        in_force = self._in_force
+        with in_force.held():
+            # No map is installed while the release lock is held (see PlanInForce.release).
+            newest_stamp_ns = self._inputs.map_stamps()[0]
+            vehicle = self._inputs.vehicle_position()
+            goal_current = self._inputs.goal_is(goal)
             if result.ok:
                 # A map arrived while planning: publish only a plan that keeps gamma from it
                 # too; otherwise plan again on it at once.
-                verdict, newest = self.newest_map_verdict(result, checked[0],
-                                                          self._plan_position(snap))
+                verdict, newest = in_force.newest_map_verdict(result, checked[0],
+                                                              self._plan_position(snap))
                 if verdict is not None and not verdict.clear:
                     self._discard(snap, goal, newest.version, newest_stamp_ns)
                     return
                 checked = (newest.version, newest_stamp_ns)
             if result.ok and takeover.moving:
-                settlement = self.settle_takeover(takeover, result)
+                settlement = in_force.settle_takeover(takeover, result)
                 if settlement.problem and settlement.retry and goal_current:
                     if self._drift_replans < _MAX_DRIFT_REPLANS:
                         self._drift_replans += 1
@@ -339,22 +390,23 @@ class PlanningWorker(NodeAttributes):
                     drift_note = (f'the vehicle moved {moved:.2f} m from the start while '
                                   f'planning ({_MAX_DRIFT_REPLANS} replans in a row); published')
             if result.ok and settlement is None:
-                settlement = self.settle_takeover(takeover, result)    # records the latency
+                settlement = in_force.settle_takeover(takeover, result)  # records the latency
             stamp_ns = (settlement.stamp_ns if settlement is not None
-                        else self.node.get_clock().now().nanoseconds)
+                        else self._node.get_clock().now().nanoseconds)
             self._last_result, self._last_goal_serial = result, goal.serial
             if result.ok:
                 self._drift_replans = 0
                 orientation = tuple(float(v) for v in goal.orientation)
-                self.release(result, checked[0], frame, stamp_ns, orientation, publish=True,
-                             position=self._plan_position(snap),
-                             start_source=snap.start_source, goal_serial=goal.serial)
+                in_force.release(result, checked[0], frame, stamp_ns, orientation, publish=True,
+                                 position=self._plan_position(snap),
+                                 start_source=snap.start_source, goal_serial=goal.serial)
             withdrawn = False
-            if (not result.ok and self._latched is not None
-                    and not self._clear_ahead(self._latched, snap)):
+            latched = in_force.latched()
+            if (not result.ok and latched is not None
+                    and not self._clear_ahead(latched, snap)):
                 # The latched plan now collides and nothing replaces it: a controller, even one
                 # that subscribes later, must not fly it. Empty messages withdraw it.
-                self._withdraw_plan(frame, stamp_ns)
+                in_force.withdraw_plan(frame, stamp_ns)
                 withdrawn = True
         takeover_problem = settlement.problem if settlement is not None else ''
         if result.ok:
@@ -374,7 +426,7 @@ class PlanningWorker(NodeAttributes):
             level = DiagnosticStatus.ERROR
             self._log.warning(f'no plan ({reason}): {result.status.value} '
                               f'(code {NAV2_CODE_BY_STATUS[result.status]}): {result.message}')
-        map_values = self._map_values(snap.map)
+        map_values = self._intake.map_values(snap.map)
         message = result.message
         if takeover_problem:
             message += f'; takeover: {takeover_problem}'
@@ -389,7 +441,7 @@ class PlanningWorker(NodeAttributes):
             'obstacles_checked_stamp': checked[1], 'frame_id': frame,
             'message': message, 'start_adjusted': bool(start_note),
             'requested_start': snap.start,
-            'geofence': describe(self._airspace, snap.settings.geofence_file),
+            'geofence': describe(self._inputs.airspace(), snap.settings.geofence_file),
             'climb_weight': snap.settings.config.climb_weight,
             'descent_weight': snap.settings.config.descent_weight})
         if start_note:
@@ -414,28 +466,24 @@ class PlanningWorker(NodeAttributes):
             if hasattr(result, key):
                 values[key] = getattr(result, key)
         values.update(map_values)
-        self._publish_diagnostics(stamp_ns, level, f'{result.status.value}: {message}',
+        self._diagnostics.publish(stamp_ns, level, f'{result.status.value}: {message}',
                                   values)
 
     def _cancelled(self, snap: Snapshot, goal: Goal, result: PlanResult) -> None:
         """A plan stopped by a newer goal, new settings or shutdown: nothing is published but
         an OK status (``event: plan_cancelled``); the newer request is served next."""
-        if self._is_stopping():
+        if self._inputs.is_stopping():
             return
-        if self._goal_is(goal):
+        if self._inputs.goal_is(goal):
             # Same goal, new settings: plan it again with them.
             self._replan_reason = 'parameters changed while planning'
         self._log.info(f'plan cancelled: {result.message}')
         values: Dict[str, object] = {'event': 'plan_cancelled', 'status': result.status.value,
                                      'reason': result.message, 'goal': goal.position}
-        values.update(self._settings_values(snap.settings))
-        self._publish_diagnostics(self.node.get_clock().now().nanoseconds,
+        values.update(self._diagnostics.settings_values(snap.settings))
+        self._diagnostics.publish(self._node.get_clock().now().nanoseconds,
                                   DiagnosticStatus.OK, f'plan cancelled: {result.message}',
                                   values)
-
-    def _goal_is(self, goal: Goal) -> bool:
-        with self._wake:
-            return self._goal is not None and self._goal.serial == goal.serial
 
     def _discard(self, snap: Snapshot, goal: Goal, version: int, stamp_ns: int) -> None:
         """Drop a plan that collides with obstacles received while it was computed.
@@ -461,8 +509,8 @@ class PlanningWorker(NodeAttributes):
         self._replan_reason = reason
         self._log.info(text)
         values = {'event': 'plan_discarded', 'status': 'discarded', 'reason': text, **extra}
-        values.update(self._settings_values(snap.settings))
-        self._publish_diagnostics(self.node.get_clock().now().nanoseconds,
+        values.update(self._diagnostics.settings_values(snap.settings))
+        self._diagnostics.publish(self._node.get_clock().now().nanoseconds,
                                   DiagnosticStatus.WARN, text, values)
 
     def _drifted(self, snap: Snapshot, goal: Goal, moved_m: float) -> None:
@@ -471,12 +519,10 @@ class PlanningWorker(NodeAttributes):
         text = (f'plan discarded: the vehicle moved {moved_m:.2f} m from its start while it was '
                 f'computed (start_replan_distance {snap.settings.start_replan_distance} m); '
                 'planning again from the newest position')
-        self._drop_plan(snap, goal, 'the vehicle moved away from the start while planning', text,
-                        {'goal': goal.position, 'start': snap.start})
-        with self._wake:
-            # Nothing else may wake the worker: ask for the replan explicitly.
-            self._replan_request = self._replan_reason
-            self._wake.notify_all()
+        reason = 'the vehicle moved away from the start while planning'
+        self._drop_plan(snap, goal, reason, text, {'goal': goal.position, 'start': snap.start})
+        # Nothing else may wake the worker: ask for the replan explicitly.
+        self._inputs.request_replan(reason)
         self._replan_reason = None
 
     def _retake(self, snap: Snapshot, goal: Goal, settlement: Settlement) -> None:
@@ -486,22 +532,12 @@ class PlanningWorker(NodeAttributes):
         text = f'plan discarded: {settlement.problem}; planning again from a newer prediction'
         extra: Dict[str, Any] = {'goal': goal.position}
         extra.update(settlement.values())
-        self._drop_plan(snap, goal, 'the predicted takeover did not hold', text, extra)
-        with self._wake:
-            # Nothing else may wake the worker: ask for the replan explicitly.
-            self._replan_request = self._replan_reason
-            self._wake.notify_all()
+        reason = 'the predicted takeover did not hold'
+        self._drop_plan(snap, goal, reason, text, extra)
+        # Nothing else may wake the worker: ask for the replan explicitly.
+        self._inputs.request_replan(reason)
         self._replan_reason = None
 
-    def submit(self, job: Callable[[Planner, Snapshot], None]) -> None:
-        """Run ``job(planner, snapshot)`` on the worker after the pending settings and map
-        are applied (the Nav2 interfaces plan their requests so); returns at once."""
-        with self._wake:
-            self._jobs.append(job)
-            self._wake.notify_all()
-
     def _run_jobs(self, snapshot: Snapshot) -> None:
-        with self._wake:
-            jobs, self._jobs = self._jobs, []
-        for job in jobs:
+        for job in self._inputs.take_jobs():
             job(self._planner, snapshot)
