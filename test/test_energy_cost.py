@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from scipy.sparse.csgraph import shortest_path
 
-from uav_global_planner.core.config import ALGORITHMS, PlannerConfig, validate_config
+from uav_global_planner.core.config import PlannerConfig, validate_config
 from uav_global_planner.core.errors import InvalidInputError, NoValidPathError
 from uav_global_planner.core.io.scene import find_scene, load_scene
 from uav_global_planner.core.map.grid import VoxelGrid
@@ -29,6 +29,8 @@ from uav_global_planner.core.search import grid_search as search_module
 from uav_global_planner.core.search.grid_search import (ALGORITHM_CODES, DEFAULT_WEIGHT,
                                                         SearchWorkspace)
 
+#: The grid search's own algorithms ('bounded' runs them: test_bounded_search.py).
+ALGORITHMS = tuple(ALGORITHM_CODES)
 RTOL = 1e-9
 # Weight pairs: the paper's length, costly climbs, cheap descents, free vertical moves, and
 # pairs cheap enough that up-down sawtooths pay.

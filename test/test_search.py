@@ -17,18 +17,22 @@ from helpers.scenes import graph_distances
 import numpy as np
 import pytest
 
-from uav_global_planner.core.config import ALGORITHMS
+from uav_global_planner.core.config import ALGORITHMS as CONFIGURABLE
 from uav_global_planner.core.errors import (GoalOccupiedError, InvalidInputError, NoValidPathError,
                                             PlanningTimeoutError, StartOccupiedError)
 from uav_global_planner.core.jit import JIT_ENABLED
 from uav_global_planner.core.map.grid import VoxelGrid
 from uav_global_planner.core.map.inflation import blocked_mask
 from uav_global_planner.core.map.obstacles import Box, ObstacleSet, PointSet, Sphere
+from uav_global_planner.core.map.sparse_grid import SparseMask
 from uav_global_planner.core.search import grid_search as search_module
 from uav_global_planner.core.search.grid_search import (ALGORITHM_CODES, DEFAULT_WEIGHT, search,
                                                         SearchResult, SearchWorkspace)
 
 REPO = Path(__file__).resolve().parents[1]
+#: The algorithms of the grid search itself ('bounded' is a search of its own, built on it,
+#: that the planner runs: test_bounded_search.py).
+ALGORITHMS = tuple(ALGORITHM_CODES)
 OPTIMAL = ('dijkstra', 'astar', 'octile')
 N_RANDOM_SCENES = 240
 # Relative tolerance of cost comparisons: sums of a few hundred step costs in float64.
@@ -328,8 +332,9 @@ def _run_subprocess(disable_jit: bool) -> dict:
 def test_pure_python_fallback_matches_compiled():
     plain = _run_subprocess(disable_jit=True)
     assert plain.pop('jit') is False
-    # The child ran every algorithm its search accepts, and those are the configurable ones.
+    # The child ran every algorithm its search accepts: the configurable ones but 'bounded'.
     assert sorted(plain) == sorted(ALGORITHMS)
+    assert sorted(set(CONFIGURABLE) - set(ALGORITHMS)) == ['bounded']
     compiled = _run_subprocess(disable_jit=False) if not JIT_ENABLED else None
     blocked = np.zeros((9, 8, 7), dtype=bool)
     blocked[3:6, 1:8, 0:6] = True
@@ -433,3 +438,174 @@ def test_every_algorithm_name_selects_its_own_heuristic():
     assert len(set(values.values())) == len(ALGORITHMS), values
     with pytest.raises(InvalidInputError, match='algorithm must be one of'):
         search(blocked, (0, 0, 0), (3, 2, 1), 'theta*', 0.5, 1.0)
+
+
+def textbook_search(blocked: np.ndarray, start, goal, algorithm: str, resolution: float,
+                    eta: float):
+    """Plain A* with Python's binary heap, keyed (f, h, node number), stale entries skipped.
+
+    Returns ``(path, cost, expanded)`` like the search, or None when the goal is unreachable.
+    """
+    import heapq
+    shape = blocked.shape
+    code = ALGORITHM_CODES[algorithm]
+    goal_t = tuple(int(v) for v in goal)
+
+    def h(node):
+        a, b, c = np.unravel_index(node, shape)
+        return search_module._heuristic(code, abs(int(a) - goal_t[0]), abs(int(b) - goal_t[1]),
+                                        goal_t[2] - int(c), resolution, eta, DEFAULT_WEIGHT)
+
+    source = int(np.ravel_multi_index(tuple(start), shape))
+    target = int(np.ravel_multi_index(goal_t, shape))
+    g = {source: 0.0}
+    parent = {source: -1}
+    closed = set()
+    heap = [(h(source), h(source), source)]
+    steps = [(a, b, c) for a in (-1, 0, 1) for b in (-1, 0, 1) for c in (-1, 0, 1)
+             if (a, b, c) != (0, 0, 0)]
+    while heap:
+        _, _, node = heapq.heappop(heap)
+        if node in closed:
+            continue
+        closed.add(node)
+        if node == target:
+            chain = [node]
+            while parent[chain[-1]] >= 0:
+                chain.append(parent[chain[-1]])
+            path = np.stack(np.unravel_index(chain[::-1], shape), axis=-1)
+            return path.tolist(), g[node], len(closed)
+        i, j, k = (int(v) for v in np.unravel_index(node, shape))
+        for a, b, c in steps:
+            n = (i + a, j + b, k + c)
+            if not all(0 <= n[m] < shape[m] for m in range(3)) or blocked[n]:
+                continue
+            neighbour = int(np.ravel_multi_index(n, shape))
+            cost = g[node] + resolution * math.sqrt(abs(a) + abs(b) + abs(c))
+            if neighbour in closed or cost >= g.get(neighbour, math.inf):
+                continue
+            g[neighbour] = cost
+            parent[neighbour] = node
+            heapq.heappush(heap, (cost + h(neighbour), h(neighbour), neighbour))
+    return None
+
+
+@pytest.mark.parametrize('seed', range(0, N_RANDOM_SCENES, 8))
+@pytest.mark.parametrize('dial', [True, False])
+def test_open_list_pops_in_binary_heap_order(monkeypatch, seed, dial):
+    """The bucketed open list expands exactly the nodes, in the order, of one binary heap: same
+    path, cost and number of expansions as a textbook A*, on both grid layouts. Dial's mode of
+    ``dijkstra`` (each bucket in node order) keeps the cost, not the order."""
+    monkeypatch.setattr(search_module, '_DIAL', dial)
+    blocked, resolution, eta, start, goal = random_scene(seed)
+    for mask in (blocked, SparseMask.from_dense(blocked)):
+        workspace = SearchWorkspace(mask)
+        for algorithm in ALGORITHM_CODES:
+            expected = textbook_search(blocked, start, goal, algorithm, resolution, eta)
+            if expected is None:
+                with pytest.raises(NoValidPathError):
+                    workspace.search(start, goal, algorithm, resolution, eta)
+                continue
+            result = workspace.search(start, goal, algorithm, resolution, eta)
+            if dial and algorithm == 'dijkstra':
+                assert result.cost_m == pytest.approx(expected[1], rel=RTOL, abs=1e-12)
+                continue
+            assert result.path_indices.tolist() == expected[0], algorithm
+            assert result.cost_m == pytest.approx(expected[1], rel=RTOL, abs=1e-12)
+            assert result.expanded_nodes == expected[2], algorithm
+
+
+@pytest.mark.parametrize('width, ring', [(0.5, 1 << 16), (0.01, 4), (1.0 - 1e-7, 1),
+                                         (1.0 - 1e-7, 2)])
+def test_dial_bucket_width_and_ring_size_keep_the_cost(monkeypatch, width, ring):
+    """Dial's buckets narrower than the cheapest step, and rings too short for the costliest
+    step (keys then wait in the ring's last bucket), keep the uniform-cost optimum."""
+    blocked, resolution, eta, queries = _queries()
+    queries = [(q[0], q[1], 'dijkstra', 0) for q in queries[::2]]
+    monkeypatch.setattr(search_module, '_DIAL', False)
+    expected = [_outcome(SearchWorkspace(blocked), blocked, resolution, eta, q) for q in queries]
+    monkeypatch.setattr(search_module, '_DIAL', True)
+    monkeypatch.setattr(search_module, '_DIAL_WIDTH', width)
+    monkeypatch.setattr(search_module, '_DIAL_MAX_RING', ring)
+    workspace = SearchWorkspace(blocked)
+    for query, before in zip(queries, expected):
+        after = _outcome(workspace, blocked, resolution, eta, query)
+        if isinstance(before[0], str):
+            assert after == before
+        else:
+            assert after[1] == pytest.approx(before[1], rel=RTOL, abs=1e-12)
+
+
+def larger_scene(seed: int):
+    """A random box-and-sphere grid of 9 to 30 nodes an axis (partial bricks of 8 nodes
+    included), with free start and goal nodes: ``(blocked, resolution, start, goal)``."""
+    rng = np.random.default_rng(1000 + seed)
+    shape = tuple(int(n) for n in rng.integers(9, 31, 3))
+    resolution = float(rng.uniform(0.1, 1.0))
+    index = np.indices(shape).transpose(1, 2, 3, 0)
+    blocked = np.zeros(shape, dtype=bool)
+    for _ in range(int(rng.integers(1, 12))):
+        low = rng.integers(0, shape)
+        if rng.random() < 0.5:
+            blocked |= np.all((index >= low) & (index <= low + rng.integers(1, 8, 3)), axis=-1)
+        else:
+            blocked |= np.sum((index - low) ** 2, axis=-1) <= rng.integers(1, 30)
+    free = np.argwhere(~blocked)
+    start, goal = free[rng.choice(len(free), 2)]
+    return blocked, resolution, start, goal
+
+
+@pytest.mark.parametrize('seed', range(40))
+def test_both_layouts_match_csgraph_on_larger_grids(seed):
+    """Optimal costs against scipy's Dijkstra on the same graph, dense and block-sparse masks
+    (nodes inside bricks take the one-lookup path), and the bound of ``weighted``."""
+    blocked, resolution, start, goal = larger_scene(seed)
+    distance = graph_distances(blocked, resolution,
+                               int(np.ravel_multi_index(tuple(start), blocked.shape)))
+    optimum = distance[np.ravel_multi_index(tuple(goal), blocked.shape)]
+    outcomes = []
+    for mask in (blocked, SparseMask.from_dense(blocked)):
+        workspace = SearchWorkspace(mask)
+        for algorithm in ALGORITHM_CODES:
+            if not np.isfinite(optimum):
+                with pytest.raises(NoValidPathError):
+                    workspace.search(start, goal, algorithm, resolution, 1.0)
+                continue
+            result = workspace.search(start, goal, algorithm, resolution, 1.0)
+            outcomes.append((result.path_indices.tolist(), result.cost_m,
+                             result.expanded_nodes))
+            assert not np.any(blocked[tuple(result.path_indices.T)])
+            if algorithm in OPTIMAL:
+                assert result.cost_m == pytest.approx(optimum, rel=RTOL, abs=1e-12), algorithm
+            else:
+                assert result.cost_m >= optimum * (1.0 - RTOL)
+            if algorithm == 'weighted':
+                assert result.cost_m <= DEFAULT_WEIGHT * optimum * (1.0 + RTOL)
+    half = len(outcomes) // 2
+    assert outcomes[:half] == outcomes[half:]
+
+
+@pytest.mark.parametrize('seed', range(0, N_RANDOM_SCENES, 12))
+@pytest.mark.parametrize('climb, descent', [(1.0, 1.0), (2.5, 0.4), (1.0, 0.0), (0.0, 3.0)])
+def test_dial_mode_keeps_the_uniform_cost_optimum(monkeypatch, seed, climb, descent):
+    """``dijkstra`` in Dial's mode (buckets as wide as the cheapest step, popped in node order)
+    costs what the exact order costs, with climb and descent weights too; a free vertical step
+    (a weight of 0) leaves it in the exact order."""
+    blocked, resolution, eta, start, goal = random_scene(seed)
+    for mask in (blocked, SparseMask.from_dense(blocked)):
+        outcomes = []
+        for dial in (True, False):
+            monkeypatch.setattr(search_module, '_DIAL', dial)
+            try:
+                result = SearchWorkspace(mask).search(start, goal, 'dijkstra', resolution, eta,
+                                                      climb_weight=climb, descent_weight=descent)
+            except NoValidPathError as error:
+                outcomes.append(('no path', error.expanded_nodes))
+                continue
+            outcomes.append(result)
+        if isinstance(outcomes[0], tuple):
+            assert outcomes[0] == outcomes[1]
+            continue
+        assert outcomes[0].cost_m == pytest.approx(outcomes[1].cost_m, rel=RTOL, abs=1e-12)
+        if min(climb, descent) == 0.0:
+            assert outcomes[0].path_indices.tolist() == outcomes[1].path_indices.tolist()

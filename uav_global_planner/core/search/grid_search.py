@@ -84,6 +84,11 @@ costs ``c`` times its length for each of its two end nodes in unknown space, hal
 so a path pays ``c`` per metre it runs between unknown nodes. The extra cost is >= 0, so every
 heuristic above keeps its guarantees (admissible and consistent where it was).
 
+``dijkstra`` (h = 0) runs its own kernel whenever every step costs more than 0
+(:mod:`uav_global_planner.core.search.dial`): Dial's buckets as wide as the cheapest step, each
+expanded in node order, so consecutive expansions touch neighbouring memory; the costs are the
+same optimum, the path one of the optimal ones.
+
 Implementation: a kernel compiled by numba (:mod:`uav_global_planner.core.jit`) works on flat
 C-order node numbers. The per-node arrays (cost g, parent direction, heap position, generation
 stamp) and the heap live in a :class:`SearchWorkspace` and are allocated once; a query bumps a
@@ -93,8 +98,9 @@ size. The open list is an indexed binary heap with decrease-key whose keys are o
 runs at most a given number of expansions per call and can be resumed, so the time budget is
 checked in Python between chunks (numba code cannot read the clock).
 
-One module, though long (about 900 lines): the compiled kernel, its heap, the heuristics and
-the workspaces that hold its arrays for both grid layouts are compiled and tuned together.
+One module, though long (about 1000 lines): the compiled kernel, its heap, the heuristics and
+the workspaces that hold its arrays for both grid layouts are compiled and tuned together;
+Dial's kernel and its bucket queue are the modules ``dial`` and ``queues``.
 """
 
 from dataclasses import dataclass
@@ -112,6 +118,7 @@ from uav_global_planner.core.errors import (GoalOccupiedError, InvalidInputError
 from uav_global_planner.core.jit import njit
 from uav_global_planner.core.map.sparse_grid import (BRICK, BRICK_BITS, BRICK_NODES, FULL,
                                                      SparseMask)
+from uav_global_planner.core.search import dial, queues
 from uav_global_planner.core.settings import check_setting
 
 _H_ZERO = 0
@@ -203,6 +210,18 @@ _P_OMEGA_DOWN = 4    # descent weight - 1
 _P_KAPPA = 5         # scale of the Euclidean heuristic
 _PARAMS_SIZE = 6
 
+# Dial's kernel for uniform-cost search when every step costs more than 0 (module notes);
+# False keeps ``dijkstra`` on the heap of the other algorithms.
+_DIAL = True
+# Bucket width of Dial's kernel, relative to the cheapest step: a hair less, so rounding in
+# the bucket number never puts a neighbour in its parent's bucket.
+_DIAL_WIDTH = 1.0 - 1e-7
+# Buckets of Dial's ring: more than the costliest step over the bucket width (a key beyond
+# the ring waits in its last bucket, exact but slower).
+_DIAL_RING = 64
+# Most buckets of Dial's ring.
+_DIAL_MAX_RING = 1 << 16
+
 # Half the extra cost per step of a node in unknown space, none: the kernel's stand-in.
 _NO_UNKNOWN_STEP = np.zeros(0, dtype=np.float64)
 
@@ -216,6 +235,8 @@ def _directions() -> np.ndarray:
 
 _DIRECTIONS = _directions()
 _DIRECTIONS.setflags(write=False)
+_BRICK_STEP = dial.brick_steps(_DIRECTIONS)
+_BRICK_STEP.setflags(write=False)
 # Length of each move in cells: sqrt(number of axes changed), i.e. 1, sqrt(2) or sqrt(3).
 _STEP_LENGTH = np.sqrt(np.abs(_DIRECTIONS).sum(axis=1).astype(np.float64))
 _STEP_LENGTH.setflags(write=False)
@@ -393,7 +414,7 @@ def _unknown_at(flat, table, pool, node, i, j, k, by, bz):  # pragma: no cover -
 
 @njit
 def _expand(blocked, mask_table, mask_pool, bricks, slots, node_g, node_int, parent, heap_node,
-            heap_rec, heap_key, directions, delta, step_cost, unknown, unknown_table,
+            heap_rec, heap_key, directions, brick_step, delta, step_cost, unknown, unknown_table,
             unknown_pool, unknown_step, state, params, max_pops):
     """Run at most ``max_pops`` expansions of the search described by ``state``.
 
@@ -403,7 +424,7 @@ def _expand(blocked, mask_table, mask_pool, bricks, slots, node_g, node_int, par
     are unused. Block-sparse (``blocked`` empty): the mask is ``mask_table`` and ``mask_pool``
     and the records live in bricks of 8 x 8 x 8 nodes; a brick of records gets a slot
     (``slots[brick]``, in the order first reached) when the search first reaches one of its
-    nodes.
+    nodes; ``brick_step`` holds the record offset of each direction inside a brick.
 
     Returns ``_FOUND`` when the goal was closed, ``_EXHAUSTED`` when the open list is empty,
     ``_PAUSED`` when ``max_pops`` ran out and, block-sparse only, ``_GROW``, without expanding,
@@ -475,15 +496,37 @@ def _expand(blocked, mask_table, mask_pool, bricks, slots, node_g, node_int, par
         u_node = 0.0
         if charged:
             u_node = _unknown_at(unknown, unknown_table, unknown_pool, node, i, j, k, by, bz)
+        # Block-sparse: a node inside its brick (off its faces) has its 26 neighbours in the
+        # same brick, whose mask and records are looked up once.
+        inside = False
+        base = 0
+        kind_node = 0
+        local_node = 0
+        if heap_rec is not None:
+            li = i & _BRICK_MASK
+            lj = j & _BRICK_MASK
+            lk = k & _BRICK_MASK
+            inside = (0 < li < _BRICK_MASK and 0 < lj < _BRICK_MASK and 0 < lk < _BRICK_MASK
+                      and i + 1 < nx and j + 1 < ny and k + 1 < nz)
+            if inside:
+                local_node = (li * BRICK + lj) * BRICK + lk
+                base = rec_node - local_node
+                kind_node = mask_table[((i >> BRICK_BITS) * by + (j >> BRICK_BITS)) * bz
+                                       + (k >> BRICK_BITS)]
         for d in range(26):
             ni = i + directions[d, 0]
             nj = j + directions[d, 1]
             nk = k + directions[d, 2]
-            if ni < 0 or ni >= nx or nj < 0 or nj >= ny or nk < 0 or nk >= nz:
-                continue
             neighbour = node + delta[d]
             rec = neighbour
-            if heap_rec is not None:
+            if inside:
+                local = local_node + brick_step[d]
+                if kind_node >= 0 and mask_pool[kind_node, local]:
+                    continue
+                rec = base + local
+            elif ni < 0 or ni >= nx or nj < 0 or nj >= ny or nk < 0 or nk >= nz:
+                continue
+            elif heap_rec is not None:
                 brick = ((ni >> BRICK_BITS) * by + (nj >> BRICK_BITS)) * bz + (nk >> BRICK_BITS)
                 local = (((ni & _BRICK_MASK) * BRICK) + (nj & _BRICK_MASK)) * BRICK + (
                     nk & _BRICK_MASK)
@@ -579,6 +622,9 @@ class SearchWorkspace:
     more. Memory then follows what the searches touch (about 8.7 kB per brick reached), not
     the grid's volume, and a first query commits only the pages it writes.
 
+    Dial's kernel (``dijkstra``) keeps its open list apart (28 bytes a pooled entry, 24 in its
+    heap; about the frontier of a search, not the grid), doubling when a search needs more.
+
     Searches on one workspace are serialised by a lock; use one workspace per thread to search
     in parallel.
 
@@ -614,6 +660,9 @@ class SearchWorkspace:
         self._sparse = False
         # Record number of each heap entry (block-sparse layout; None on the dense one).
         self._heap_rec: Optional[np.ndarray] = None
+        # The open list of Dial's kernel (queues module); it grows as a search needs.
+        (self._q_heap_key, self._q_heap_int, self._q_pool_key, self._q_pool_int,
+         self._q_heads, self._qstate) = queues.new_arrays(queues.FIRST_CAPACITY, _DIAL_RING)
         self._use(self._blocked)
 
     def _use(self, blocked: Union[np.ndarray, SparseMask]) -> None:
@@ -667,6 +716,8 @@ class SearchWorkspace:
         arrays: List[np.ndarray] = [self._node_g, self._parent, self._heap_node, self._heap_key]
         if self._heap_rec is not None:
             arrays += [self._heap_rec, self._slots]
+        arrays += [self._q_heap_key, self._q_heap_int, self._q_pool_key, self._q_pool_int,
+                   self._q_heads]
         return int(sum(a.nbytes for a in arrays))
 
     def _kernel_masks(self) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -703,6 +754,11 @@ class SearchWorkspace:
             heap_key = np.zeros(2 * entries, dtype=np.float64)
             heap_key[:2 * size] = self._heap_key[:2 * size]
             self._heap_node, self._heap_rec, self._heap_key = heap_node, heap_rec, heap_key
+        qstate = self._qstate
+        if int(qstate[queues.Q_SIZE] + qstate[queues.Q_RING]) + 52 > len(self._q_heap_int) // 2:
+            grown = queues.grown(self._q_heap_key, self._q_heap_int, self._q_pool_key,
+                                 self._q_pool_int, qstate)
+            self._q_heap_key, self._q_heap_int, self._q_pool_key, self._q_pool_int = grown
 
     def set_blocked(self, blocked: Union[np.ndarray, SparseMask]) -> None:
         """Search another occupancy grid of the same shape, keeping the allocated memory.
@@ -813,6 +869,7 @@ class SearchWorkspace:
             state = self._state
             flat, table, pool = self._kernel_masks()
             u_flat, u_table, u_pool, u_step = self._unknown_arrays(unknown, rate, delta_m)
+            inv_width = self._begin_dial(start, code, step_cost, u_step)
             while True:
                 if budget_s > 0.0 or checkpoint is not None:
                     pops = _CHUNK
@@ -820,10 +877,19 @@ class SearchWorkspace:
                     pops = _MAX_NODES
                 if budget_n > 0:
                     pops = min(pops, budget_n - int(state[_S_EXPANDED]))
-                status = _expand(flat, table, pool, self._bricks, self._slots, self._node_g,
-                                 self._node_int, self._parent, self._heap_node, self._heap_rec,
-                                 self._heap_key, _DIRECTIONS, self._delta, step_cost, u_flat,
-                                 u_table, u_pool, u_step, state, self._params, pops)
+                if inv_width > 0.0:
+                    status = dial.expand(
+                        flat, table, pool, self._bricks, self._slots if self._sparse else None,
+                        self._node_g, self._node_int, self._parent, self._q_heap_key,
+                        self._q_heap_int, self._q_pool_key, self._q_pool_int, self._q_heads,
+                        self._qstate, _DIRECTIONS, _BRICK_STEP, self._delta, step_cost, u_flat,
+                        u_table, u_pool, u_step, state, inv_width, pops)
+                else:
+                    status = _expand(flat, table, pool, self._bricks, self._slots,
+                                     self._node_g, self._node_int, self._parent,
+                                     self._heap_node, self._heap_rec, self._heap_key,
+                                     _DIRECTIONS, _BRICK_STEP, self._delta, step_cost, u_flat,
+                                     u_table, u_pool, u_step, state, self._params, pops)
                 if status == _GROW:
                     self._grow()
                     continue
@@ -878,6 +944,29 @@ class SearchWorkspace:
         if unknown.dtype != np.bool_:
             raise InvalidInputError('the unknown-space mask must be a bool array')
         return np.ascontiguousarray(unknown).reshape(-1), _NO_TABLE, _NO_POOL, step
+
+    def _begin_dial(self, start: int, code: int, step_cost: np.ndarray,
+                    unknown_step: np.ndarray) -> float:
+        """Put the start node on the open list of Dial's kernel when it serves this query
+        (``dijkstra``, every step costing more than 0); return 1 / the bucket width [1/m], or
+        0.0 when the heap serves it. Call after :meth:`_begin`."""
+        cheapest = float(step_cost.min())
+        if code != _H_ZERO or not _DIAL or not cheapest > 0.0:
+            return 0.0
+        width = cheapest * _DIAL_WIDTH
+        costliest = float(step_cost.max()) + 2.0 * float(unknown_step.max(initial=0.0))
+        buckets = min(math.ceil(costliest / width) + 4, _DIAL_MAX_RING)
+        ring = 1 << (buckets - 1).bit_length()
+        if ring > len(self._q_heads):
+            self._q_heads = np.full(ring, -1, dtype=np.int32)
+        record = start
+        if self._sparse:
+            _, ny, nz = self.shape
+            record = int(_record(start, ny, nz, self._bricks, self._slots))
+        queues.reset(self._q_heads, self._qstate, ring, 0)
+        queues.push(self._q_heap_key, self._q_heap_int, self._q_pool_key, self._q_pool_int,
+                    self._q_heads, self._qstate, 1.0 / width, 0.0, 0.0, start, record)
+        return 1.0 / width
 
     def _begin(self, start: int, goal: int, code: int, resolution: float, eta: float,
                weight: float, climb: float = 1.0, descent: float = 1.0) -> None:
