@@ -24,6 +24,8 @@ is a definite violation.
 
 Cost: samples no coarser than the given spacing along the queried geometry, each a capped
 lookup, plus refinement only where the bound is tight. Memory follows the queried length.
+Straight segments among obstacles that are shapes only are refined in one compiled call
+(:mod:`~uav_global_planner.core.path.segment_refinement`, the same bound and the same verdicts).
 
 The module is somewhat over 500 lines on purpose: the certificate, the pieces it evaluates and
 the segment and polyline checks built on it are the one implementation of every safety
@@ -37,10 +39,19 @@ from typing import Callable, Optional, Tuple
 import numpy as np
 
 from uav_global_planner.core.errors import InvalidInputError
+from uav_global_planner.core.jit import JIT_ENABLED
 from uav_global_planner.core.map.obstacles import ObstacleSet
+from uav_global_planner.core.path import arc_length
+from uav_global_planner.core.path.segment_refinement import refine_lines, shape_tables
 
 #: Coarsest verification sampling of curves, as a fraction of delta (delta / 20).
 CHECK_SPACING_FRACTION = 1.0 / 20.0
+#: Finest first sampling of curves [m] (delta / 20 at delta = 0.1 m): on finer grids the samples
+#: stay this far apart, so their number follows the curve's length, not the grid's resolution.
+#: The certificate refines wherever its bound needs it, so it is exact at any first spacing;
+#: what the spacing sets is how close the sampled smallest clearance (the report) comes to the
+#: true one, within half a spacing.
+MIN_CHECK_SPACING = 0.005
 #: Finest subdivision of the clearance certificate, as a fraction of delta.
 FINEST_SPACING_FRACTION = 1e-5
 #: First sampling of straight segments [m]. The certificate refines it wherever needed, so this
@@ -56,6 +67,12 @@ MIN_CAP_SLACK = 1.0
 _MAX_PIECES = 1024
 # Reported smallest clearances farther than this are computed without a cap [m].
 _WIDEST_REPORT_CAP = 256.0
+
+
+def check_spacing(delta: float) -> float:
+    """First spacing of the verification samples of a curve on a grid of spacing ``delta``
+    [m]: ``delta / 20`` (:data:`CHECK_SPACING_FRACTION`), at least :data:`MIN_CHECK_SPACING`."""
+    return max(delta * CHECK_SPACING_FRACTION, MIN_CHECK_SPACING)
 
 
 def certificate_cap(gamma: float, spacing: float) -> float:
@@ -107,24 +124,20 @@ class Pieces:
         return ((c[0] * x + c[1]) * x + c[2]) * x + c[3]
 
     def first(self, piece: np.ndarray, tau: np.ndarray) -> np.ndarray:
-        c = self.coef[:, piece, :]
+        c = self.coef[:3, piece, :]
         x = tau[:, None]
         return (3.0 * c[0] * x + 2.0 * c[1]) * x + c[2]
 
     def second(self, piece: np.ndarray, tau: np.ndarray) -> np.ndarray:
-        c = self.coef[:, piece, :]
+        c = self.coef[:2, piece, :]
         return 6.0 * c[0] * tau[:, None] + 2.0 * c[1]
 
     def speed_integral(self, piece: np.ndarray, tau0: np.ndarray, tau1: np.ndarray,
                        order: int = 5) -> np.ndarray:
-        """Arc length from ``tau0`` to ``tau1`` on each piece [m] (Gauss-Legendre rule)."""
+        """Arc length from ``tau0`` to ``tau1`` on each piece [m] (Gauss-Legendre rule, a
+        compiled loop: :mod:`~uav_global_planner.core.path.arc_length`)."""
         nodes, weights = GAUSS[order]
-        half = 0.5 * (tau1 - tau0)
-        mid = 0.5 * (tau1 + tau0)
-        at = (mid[:, None] + half[:, None] * nodes[None, :]).ravel()
-        d1 = self.first(np.repeat(piece, order), at)
-        speed = np.sqrt(np.einsum('ij,ij->i', d1, d1)).reshape(-1, order)
-        return half * (speed @ weights)
+        return arc_length.speed_integral(self.coef, piece, tau0, tau1, nodes, weights)
 
 
 def line_pieces(p0: np.ndarray, p1: np.ndarray) -> Pieces:
@@ -152,7 +165,8 @@ def certify_samples(pieces: Pieces, piece: np.ndarray, tau: np.ndarray, pos: np.
                     obstacles: ObstacleSet, gamma: float, finest: float,
                     skip: Optional[np.ndarray] = None, stats: bool = True,
                     cap: float = math.inf,
-                    checkpoint: Optional[Callable[[], None]] = None) -> Certificate:
+                    checkpoint: Optional[Callable[[], None]] = None,
+                    max_pieces: int = _MAX_PIECES) -> Certificate:
     """Certify clearance >= gamma on every interval between consecutive samples of a piece.
 
     Parameters
@@ -180,6 +194,11 @@ def certify_samples(pieces: Pieces, piece: np.ndarray, tau: np.ndarray, pos: np.
         may be capped the same way. Capped distances are lower bounds, so the certificate holds.
     checkpoint : callable, optional
         Called before every refinement round; it raises to abandon the work.
+    max_pieces : int
+        An interval whose end clearances leave so little room above gamma that certifying it
+        would take more than this many pieces is refused (counted as violated). Refusing is
+        always safe; a caller that only looks for a good segment among many (shortcutting) can
+        refuse sooner.
 
     Notes
     -----
@@ -221,7 +240,7 @@ def certify_samples(pieces: Pieces, piece: np.ndarray, tau: np.ndarray, pos: np.
         # metres would otherwise take millions). Refused, it is repaired or re-planned with
         # room, as a violation is.
         slack_all = da + db - 2.0 * gamma
-        violated[p[~ok & ((size <= finest) | (slack_all * _MAX_PIECES < size))]] = True
+        violated[p[~ok & ((size <= finest) | (slack_all * max_pieces < size))]] = True
         refine = np.flatnonzero(~ok & ~violated[p])
         if not len(refine):
             break
@@ -281,9 +300,10 @@ def certify_samples(pieces: Pieces, piece: np.ndarray, tau: np.ndarray, pos: np.
 
 def segments_clear(p0: np.ndarray, p1: np.ndarray, obstacles: ObstacleSet, gamma: float,
                    spacing: float, finest: float,
-                   checkpoint: Optional[Callable[[], None]] = None
-                   ) -> Tuple[np.ndarray, np.ndarray]:
-    """Certify straight segments ``p0[i] -> p1[i]`` in one batch.
+                   checkpoint: Optional[Callable[[], None]] = None,
+                   max_pieces: int = _MAX_PIECES) -> Tuple[np.ndarray, np.ndarray]:
+    """Certify straight segments ``p0[i] -> p1[i]`` in one batch (``max_pieces`` as for
+    :func:`certify_samples`).
 
     Returns
     -------
@@ -303,8 +323,14 @@ def segments_clear(p0: np.ndarray, p1: np.ndarray, obstacles: ObstacleSet, gamma
     cap = certificate_cap(gamma, spacing)
     dist = obstacles.distance(pos, cap)
     first = local < counts[piece]
+    tables = shape_tables(obstacles, cap) if JIT_ENABLED else None
+    if tables is not None:
+        # Shapes only: the same refinement in one compiled call (segment_refinement).
+        violated, certified = refine_lines(p0, p1, piece, tau, pos, dist, first, gamma, finest,
+                                           max_pieces, cap, tables)
+        return ~violated, certified
     cert = certify_samples(pieces, piece, tau, pos, None, dist, first, obstacles, gamma, finest,
-                           stats=False, cap=cap, checkpoint=checkpoint)
+                           stats=False, cap=cap, checkpoint=checkpoint, max_pieces=max_pieces)
     return ~cert.violated, cert.certified
 
 
@@ -367,8 +393,8 @@ def certify_pieces(pieces: Pieces, obstacles: ObstacleSet, gamma: float, delta: 
     gamma : float
         Margin [m], >= 0.
     delta : float
-        Grid spacing [m], > 0: samples are no more than ``delta / 20`` apart and intervals are
-        subdivided down to ``delta * 1e-5``.
+        Grid spacing [m], > 0: samples are no more than :func:`check_spacing` apart (delta / 20,
+        at least 5 mm) and intervals are subdivided down to ``delta * 1e-5``.
     skip : numpy.ndarray of bool, shape (P,), optional
         Pieces certified elsewhere (sampled for the statistics only).
     checkpoint : callable, optional
@@ -382,7 +408,7 @@ def certify_pieces(pieces: Pieces, obstacles: ObstacleSet, gamma: float, delta: 
         ``violated`` per piece; ``min_clearance`` and ``min_point`` are exact (the smallest true
         clearance among the samples), ``piece_min`` exact wherever it is below the cap.
     """
-    spacing = delta * CHECK_SPACING_FRACTION
+    spacing = check_spacing(delta)
     grid = sample_pieces(pieces, spacing)
     if checkpoint is not None:
         checkpoint()

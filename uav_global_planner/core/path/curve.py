@@ -180,11 +180,14 @@ def _range_bounds(coef: np.ndarray, piece: np.ndarray, t0: np.ndarray, t1: np.nd
     poor = low <= _GOOD_SPEED_BOUND * speed
     if splits > 0 and poor.any():
         rows = np.flatnonzero(poor)
-        left = _range_bounds(coef, piece[rows], t0[rows], middle[rows], splits - 1)
-        right = _range_bounds(coef, piece[rows], middle[rows], t1[rows], splits - 1)
+        count = len(rows)
+        # Both halves in one call: the calls grow with the splits, not with 2^splits.
+        halves = _range_bounds(coef, np.r_[piece[rows], piece[rows]],
+                               np.r_[t0[rows], middle[rows]], np.r_[middle[rows], t1[rows]],
+                               splits - 1)
         good_k, good_r = _bounds_of(second, third, np.where(poor, 1.0, low))
-        good_k[rows] = np.maximum(left[0], right[0])
-        good_r[rows] = np.maximum(left[1], right[1])
+        good_k[rows] = np.maximum(halves[0][:count], halves[0][count:])
+        good_r[rows] = np.maximum(halves[1][:count], halves[1][count:])
         return good_k, good_r
     # No better bound of the speed: the tiniest positive one (a cusp has no finite bound).
     return _bounds_of(second, third, np.maximum(low, 1e-9 * np.maximum(speed, 1e-9)))
@@ -298,7 +301,7 @@ def interval_maxima(pieces: Pieces, grid: SampleGrid, arc: np.ndarray, tangent_i
     """Largest horizontal and vertical tangent and curvature components over each interval.
 
     Taken over the interval's two ends (one-sided at stop points) and every verification sample
-    strictly inside it (spacing <= delta / 20).
+    strictly inside it (spacing <= max(delta / 20, 5 mm)).
     """
     tangent_max = np.maximum(_components(tangent_out[:-1]), _components(tangent_in[1:]))
     curvature_max = np.maximum(_components(curvature[:-1]), _components(curvature[1:]))

@@ -28,9 +28,16 @@ SHORTCUT_SPACING = SEGMENT_SPACING
 #: A shortcut past the next node must keep gamma plus this many delta: it bounds the work of
 #: certifying a jump to (length / slack) intervals where the farthest visible node grazes.
 SHORTCUT_SLACK_FRACTION = 0.02
+#: ... and at least this much [m] (0.02 delta at delta = 0.1 m): on finer grids the work of a
+#: grazing jump then follows its length, not the grid's resolution.
+MIN_SHORTCUT_SLACK = 0.002
 #: Consecutive waypoints closer than this are merged [m]; the chord parameter needs a gap.
 DUPLICATE_TOLERANCE = 1e-9
 
+# A jump past the next node is refused when certifying one of its first intervals would take
+# more than this many pieces (a segment along an obstacle face barely above gamma plus the
+# slack would otherwise take its length over that excess): a shorter jump is taken instead.
+_JUMP_MAX_PIECES = 256
 # Up to this many nodes ahead are all certified in one batch (exact farthest visible).
 _SHORTCUT_BATCH = 64
 # Nodes this close ahead are all certified in the first batch of a long path.
@@ -75,7 +82,7 @@ def _far_visible(path: np.ndarray, anchor: int, obstacles: ObstacleSet, gamma: f
     """
     n = len(path)
     ahead = n - 1 - anchor
-    slack = SHORTCUT_SLACK_FRACTION * finest / FINEST_SPACING_FRACTION
+    slack = max(SHORTCUT_SLACK_FRACTION * finest / FINEST_SPACING_FRACTION, MIN_SHORTCUT_SLACK)
     if ahead <= _SHORTCUT_BATCH:
         # Few nodes ahead: certify them all at once and take the farthest visible.
         offsets = np.arange(1, ahead + 1)
@@ -93,7 +100,7 @@ def _far_visible(path: np.ndarray, anchor: int, obstacles: ObstacleSet, gamma: f
         # a micrometre takes (length / micrometre) intervals. The next node is checked
         # against gamma itself, as before.
         clear, bound = segments_clear(starts, ends, obstacles, gamma + slack, spacing, finest,
-                                      checkpoint)
+                                      checkpoint, max_pieces=_JUMP_MAX_PIECES)
         next_node = offs == 1
         if next_node.any() and not clear[next_node].all():
             clear[next_node], bound[next_node] = segments_clear(
@@ -283,7 +290,8 @@ def shortcut_path(path, obstacles: ObstacleSet, safety_margin: float,
     From the start, repeatedly jump to the farthest later node whose straight segment has
     clearance >= gamma, certified on the whole segment (not only at samples) by the 1-Lipschitz
     bound of the module docstring: samples every 0.25 m, refined adaptively down to
-    ``delta * 1e-5``, all candidate segments of one anchor in a single distance query per round.
+    ``delta * 1e-5``, all candidate segments of one anchor in one batch (a single distance query
+    per round, or one compiled call for obstacles that are shapes only).
     Where not even the next node is visible (that raw edge dips below gamma), a detour vertex is
     inserted beside the edge if its two segments certify; otherwise the edge is kept as it is.
     Every other segment of the result keeps clearance >= gamma everywhere.

@@ -56,13 +56,15 @@ the certified bound::
 
     d(c(t)) >= (d(a) + d(b) - |ab|) / 2 - e       for every t in [t_a, t_b].
 
-The curve is sampled no coarser than ``delta / 20`` (:data:`CHECK_SPACING_FRACTION`) and every
-interval whose bound is below gamma is subdivided, down to ``delta * 1e-5``
-(:data:`FINEST_SPACING_FRACTION`). A curve is accepted only when the bound is >= gamma on every
-interval, so **every point of the returned continuous curve has clearance >= gamma**, up to
-floating-point rounding. The price: a curve whose true clearance exceeds gamma by less than about
-``delta * 1e-5 / 2`` somewhere is treated as violating. With gamma = 0 the bound still rejects any
-curve that enters or touches an obstacle. Shortcut segments are certified the same way.
+The curve is sampled no coarser than ``delta / 20`` (:data:`CHECK_SPACING_FRACTION`; on grids
+finer than 0.1 m every 5 mm, :data:`MIN_CHECK_SPACING`, so the work follows the curve's length,
+not the grid's resolution) and every interval whose bound is below gamma is subdivided, down to
+``delta * 1e-5`` (:data:`FINEST_SPACING_FRACTION`). A curve is accepted only when the bound is
+>= gamma on every interval, so **every point of the returned continuous curve has clearance >=
+gamma**, up to floating-point rounding. The price: a curve whose true clearance exceeds gamma by
+less than about ``delta * 1e-5 / 2`` somewhere is treated as violating. With gamma = 0 the bound
+still rejects any curve that enters or touches an obstacle. Shortcut segments are certified the
+same way.
 
 The raw polyline is not safe by itself
 --------------------------------------
@@ -183,8 +185,8 @@ class SmoothedPath:
     length_m : float
         Arc length of the curve [m].
     min_clearance_m : float
-        Smallest clearance found among the verification samples (spacing <= delta / 20, finer
-        near obstacles) [m]; +inf without obstacles.
+        Smallest clearance found among the verification samples (spacing <= max(delta / 20,
+        5 mm), finer near obstacles) [m]; +inf without obstacles.
     min_clearance_point : numpy.ndarray, shape (3,)
         Where it was found [m].
     certified_clearance_m : float
@@ -251,7 +253,7 @@ def smooth_path(raw_path, obstacles: ObstacleSet, safety_margin: float, resoluti
     safety_margin : float
         gamma [m], >= 0.
     resolution : float
-        Grid spacing delta [m], > 0: verification samples are <= delta / 20 apart.
+        Grid spacing delta [m], > 0: verification samples are <= max(delta / 20, 5 mm) apart.
     shortcut : bool
         Shortcut the path first (:func:`~uav_global_planner.core.path.shortcut.shortcut_path`).
     mode : str
