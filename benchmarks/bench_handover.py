@@ -10,7 +10,9 @@ reference's state there (position, velocity, acceleration, and the old reference
 node hands them over), and the jump between the old reference and the new one at the switch
 is measured: position, velocity and acceleration, against the tolerances 1 cm, 0.05 m/s and
 0.2 m/s^2. New goals: the old goal itself (the same route again), one off to the side, and one
-behind (a turn of more than 90 degrees). Figures only: nothing here asserts.
+behind (a turn of more than 90 degrees). The longest crawl is the longest time a new reference
+moves slower than 1 cm/s before its end (a turn back at a near-cusp of its curve takes a second
+or so; minutes would be a crawl). Figures only: nothing here asserts.
 """
 
 import argparse
@@ -26,6 +28,10 @@ from uav_global_planner.core.planner import Planner
 #: The handover tolerances [m], [m/s], [m/s^2].
 TOLERANCES = (0.01, 0.05, 0.2)
 
+#: Slower than this a reference crawls [m/s]; checked every CRAWL_STEP_S [s].
+CRAWL_SPEED = 0.01
+CRAWL_STEP_S = 0.01
+
 #: First flight (start, goal) and the new goals asked in flight, per scene [m].
 CASES = {
     'paper_medium': (([-8.0, -8.0, 3.0], [8.0, 8.0, 3.0]),
@@ -36,9 +42,21 @@ CASES = {
 }
 
 
+def longest_crawl(trajectory) -> float:
+    """Longest time [s] the reference moves slower than CRAWL_SPEED before its end."""
+    times = np.arange(0.0, trajectory.duration_s, CRAWL_STEP_S)
+    slow = np.linalg.norm(trajectory.state_at(times).velocity, axis=1) < CRAWL_SPEED
+    longest = run = 0
+    for flag in slow[:-1]:
+        run = run + 1 if flag else 0
+        longest = max(longest, run)
+    return longest * CRAWL_STEP_S
+
+
 def jumps(planner: Planner, first, goal: Sequence[float],
-          count: int) -> List[Tuple[float, float, float, float]]:
-    """(takeover time, |dp|, |dv|, |da|) at ``count`` takeover times of the first plan."""
+          count: int) -> List[Tuple[float, float, float, float, float]]:
+    """(takeover time, |dp|, |dv|, |da|, longest crawl [s]) at ``count`` takeover times of the
+    first plan."""
     trajectory = first.trajectory
     out = []
     for fraction in np.linspace(0.1, 0.8, count):
@@ -48,12 +66,13 @@ def jumps(planner: Planner, first, goal: Sequence[float],
         result = planner.plan(state.position[0], goal, start_velocity=state.velocity[0],
                               start_acceleration=state.acceleration[0], start_path=ahead)
         if not result.ok:
-            out.append((at, np.nan, np.nan, np.nan))
+            out.append((at, np.nan, np.nan, np.nan, np.nan))
             continue
         new = result.trajectory.state_at(0.0)
         out.append((at, float(np.linalg.norm(new.position[0] - state.position[0])),
                     float(np.linalg.norm(new.velocity[0] - state.velocity[0])),
-                    float(np.linalg.norm(new.acceleration[0] - state.acceleration[0]))))
+                    float(np.linalg.norm(new.acceleration[0] - state.acceleration[0])),
+                    longest_crawl(result.trajectory)))
     return out
 
 
@@ -64,7 +83,7 @@ def main() -> None:
     parser.add_argument('--count', type=int, default=12, help='takeover times per case')
     args = parser.parse_args()
     print('scene         new goal      speed at takeover [m/s]  worst |dp| [m]  |dv| [m/s]  '
-          '|da| [m/s^2]  within tolerances')
+          '|da| [m/s^2]  within tolerances  longest crawl [s]')
     for name, (leg, goals) in CASES.items():
         scene = load_scene(find_scene(name))
         config = validate_config(replace(scene.config, max_speed_horizontal=5.0,
@@ -76,12 +95,13 @@ def main() -> None:
             np.linspace(0.1, 0.8, args.count) * first.duration_s).velocity, axis=1)
         for label, new_goal in goals.items():
             rows = jumps(planner, first, goal if new_goal is None else new_goal, args.count)
-            table = np.array([row[1:] for row in rows])
+            table = np.array([row[1:4] for row in rows])
+            crawl = np.nanmax([row[4] for row in rows])
             kept = int(np.sum(np.all(table <= np.array(TOLERANCES), axis=1)))
             worst = np.nanmax(table, axis=0)
             print(f'{name:13s} {label:12s} {speeds.min():5.2f} - {speeds.max():5.2f}'
                   f'{worst[0]:22.2e} {worst[1]:11.3f} {worst[2]:13.3f} '
-                  f'{kept:10d} of {len(rows)}')
+                  f'{kept:10d} of {len(rows)} {crawl:17.2f}')
 
 
 if __name__ == '__main__':

@@ -15,7 +15,6 @@ bench_px4_closed_loop.py prints its figures (latencies, time to goal).
 """
 
 import math
-import os
 import re
 
 import numpy as np
@@ -24,16 +23,6 @@ import pytest
 from ros_harness import unique_domain_id
 from uav_global_planner_tools.px4_sim.closed_loop import (ClosedLoopReport, ClosedLoopSettings,
                                                           fly_closed_loop)
-
-#: Opt-in until the stall it found is fixed: in 1 of 3 runs the replacement plan's timed
-#: reference brought the vehicle to a near stop beside the dropped box and then crept along at
-#: about 1 mm/s, so the goal was not reached in 120 s (the follower and the vehicle did as told;
-#: the reference itself stalled). UAV_PLANNER_CLOSED_LOOP=1 runs these flights (so does
-#: benchmarks/bench_px4_closed_loop.py).
-pytestmark = pytest.mark.skipif(
-    os.environ.get('UAV_PLANNER_CLOSED_LOOP') != '1',
-    reason='closed-loop flights are opt-in (UAV_PLANNER_CLOSED_LOOP=1) until the timed '
-           "reference's stall beside a dropped box is fixed")
 
 pytest.importorskip('rotorpy')   # requirements.txt installs it; this only names it
 pytest.importorskip('px4_msgs')  # scripts/build_interfaces.sh builds it into the venv

@@ -172,6 +172,31 @@ def test_settling_a_plan_on_time_late_or_not_continuing():
     assert predictor.expected_latency_s() > latency - PUBLISH_MARGIN_S
 
 
+def test_a_plan_that_cannot_continue_the_odometry_is_planned_again():
+    """No plan in force (withdrawn: a follower holds and the vehicle brakes): a plan whose
+    curve could not keep the odometry's motion is planned again from the newest odometry,
+    never published as if the vehicle would reach its start."""
+    clock = Clock()
+    predictor = TakeoverPredictor(clock)
+    velocity = np.array([2.0, 0.0, 0.0])
+    predictor.on_odometry(np.array([0.0, 0.0, 2.0]), velocity, 0.0)
+    takeover = predictor.predict(np.array([0.0, 0.0, 2.0]), StartSource.ODOM, None)
+    assert takeover.kind is TakeoverKind.ODOMETRY and takeover.moving
+    t = np.linspace(0.0, 3.0, 301)
+    at_rest = Trajectory(times=t, positions=np.tile(takeover.position, (t.size, 1)),
+                         velocities=np.zeros((t.size, 3)), accelerations=np.zeros((t.size, 3)))
+    clock.now_ns = takeover.predicted_ns
+    settled = predictor.settle(takeover, at_rest, None, None, 0.0)
+    assert settled.retry and 'does not continue the motion' in settled.problem
+    assert 'planned again from the newest odometry' in settled.problem
+    # The same plan continuing the motion goes out as it is.
+    moving = Trajectory(times=t, positions=takeover.position + np.outer(t, velocity),
+                        velocities=np.tile(velocity, (t.size, 1)),
+                        accelerations=np.zeros((t.size, 3)))
+    settled = predictor.settle(takeover, moving, None, None, 0.0)
+    assert not settled.problem and not settled.retry
+
+
 def test_plan_arguments_follow_the_planner_signature():
     clock = Clock()
     predictor = TakeoverPredictor(clock)

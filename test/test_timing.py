@@ -214,6 +214,59 @@ def test_a_moving_start_is_continued_exactly(speed, accel):
     assert check_limits(timing.trajectory, limits, step_s=STEP) == []
 
 
+def longest_crawl(trajectory, below: float = 0.01, step: float = 0.01) -> float:
+    """Longest time [s] the reference moves slower than ``below`` [m/s] without having ended:
+    a crawl (a stop at a corner takes a fraction of a second)."""
+    times = np.arange(0.0, trajectory.duration_s, step)
+    slow = np.linalg.norm(trajectory.state_at(times).velocity, axis=1) < below
+    longest = run = 0
+    for flag in slow[:-1]:
+        run = run + 1 if flag else 0
+        longest = max(longest, run)
+    return longest * step
+
+
+@pytest.mark.parametrize('back, side, lead_in', [(5.0, 0.3, 8.0), (6.0, 0.5, 10.0),
+                                                 (8.0, 0.1, 12.0)])
+def test_a_curve_that_turns_back_passes_its_near_cusp_without_crawling(back, side, lead_in):
+    """A moving start whose goal lies behind it: the curve leaves along the motion for the
+    lead-in and then turns back on itself within micrometres (a near-cusp). The reference slows
+    down to turn there, within every limit, and goes on: it does not crawl (it used to creep
+    along at 1 mm/s for minutes, the cap of the sharpest point held over the whole sample
+    interval)."""
+    smoothed = smooth_path(np.array([[0.0, 0.0, 2.0], [-back, side, 2.0]]), ObstacleSet(), 0.2,
+                           0.5, start_tangent=[1.0, 0.0, 0.0], start_lead_in=lead_in)
+    assert smoothed.start_kept
+    timing = time_parameterize(smoothed, DEFAULTS, start=StartMotion(2.0, 0.0))
+    trajectory = timing.trajectory
+    assert longest_crawl(trajectory) < 5.0
+    # Out at 2 m/s for the lead-in, back to the goal: well under twice the time at full speed.
+    assert trajectory.duration_s < 2.0 * (smoothed.length_m / 2.0 + 2 * 2.0 / 0.35)
+    check_reference(smoothed, DEFAULTS, ObstacleSet(), 0.2, trajectory, moving=True)
+    box = DEFAULTS.acceleration_box()
+    stations = _Stations.of(smoothed, None).refined(smoothed.curve, DEFAULTS, box.horizontal,
+                                                    box.vertical)
+    # The near-cusp: a radius below a millimetre, where the stations were cut finer.
+    _, _, curvature, _ = smoothed.curve.derivatives3(stations.s)
+    assert np.nanmax(np.linalg.norm(curvature, axis=1)) > 1e3
+    assert len(stations.s) > len(smoothed.arc_length)
+    # The bounds of the cut stations hold inside each of their intervals.
+    rng = np.random.default_rng(7)
+    s = stations.s
+    th, tz = stations.tangent.T
+    for _ in range(4):
+        inside = s[:-1] + rng.uniform(0.0, 1.0, len(s) - 1) * np.diff(s)
+        _, tangent, curvature, rate = smoothed.curve.derivatives3(inside)
+        assert np.all(np.hypot(tangent[:, 0], tangent[:, 1]) <= th + 1e-9)
+        assert np.all(np.abs(tangent[:, 2]) <= tz + 1e-9)
+        assert np.all(np.linalg.norm(curvature, axis=1)
+                      <= stations.curvature_norm * (1 + 1e-9) + 1e-9)
+        assert np.all(np.hypot(curvature[:, 0], curvature[:, 1])
+                      <= stations.curvature[:, 0] * (1 + 1e-9) + 1e-9)
+        assert np.all(np.linalg.norm(rate, axis=1)
+                      <= stations.curvature_rate * (1 + 1e-9) + 1e-9)
+
+
 def test_a_start_too_fast_to_stop_is_slowed_and_says_so():
     smoothed = smooth_path(np.array([[0.0, 0.0, 5.0], [4.0, 0.0, 5.0]]), ObstacleSet(), 0.2,
                            0.5)

@@ -423,9 +423,17 @@ class TakeoverPredictor:
                 f'the plan was ready {jump.late_s:.3f} s after its takeover time (expected '
                 f'latency {takeover.latency_s:.3f} s); switching to it now jumps by '
                 f'{jump.describe()}'), retry=True)
-        return Settlement(takeover.stamp_ns, jump, (
-            f'the plan does not continue the motion at its takeover time: it differs by '
-            f'{jump.describe()} (the curve could not keep the start state)'))
+        problem = (f'the plan does not continue the motion at its takeover time: it differs by '
+                   f'{jump.describe()} (the curve could not keep the start state)')
+        if takeover.kind is TakeoverKind.ODOMETRY:
+            # No plan of ours is in force: the vehicle flies on its own or brakes to a
+            # follower's hold, so the constant-velocity guess goes stale within a second, and a
+            # plan from a point the vehicle never reaches would leave the follower waiting for
+            # one from where it is. Plan again from the newest odometry (it converges: a
+            # braking vehicle soon starts from rest).
+            return Settlement(takeover.stamp_ns, jump, problem + '; planned again from the '
+                              'newest odometry', retry=True)
+        return Settlement(takeover.stamp_ns, jump, problem)
 
 
 #: How far ahead the plan in force's reference is handed to the planner, and how densely

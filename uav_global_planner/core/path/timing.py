@@ -20,10 +20,13 @@ steps; the reference and its derivatives are those of
 
    Both sides of each line bound the true components by the triangle inequality, since
    ``a = s_tt T + s_t^2 K`` and ``j = s_ttt T + 3 s_t s_tt K + s_t^3 K'``. The centripetal
-   term leaves :data:`TANGENTIAL_RESERVE` of ``A_c``; in a bend the jerk terms first lower
-   ``alpha_i`` (down to :data:`MIN_ALPHA_SHARE` of itself), then ``w_i``, and always leave
+   term leaves ``TANGENTIAL_RESERVE`` of ``A_c``; in a bend the jerk terms first lower
+   ``alpha_i`` (down to ``MIN_ALPHA_SHARE`` of itself), then ``w_i``, and always leave
    ``zeta_i >= alpha_i J / max(alpha)``. A user's speed cap (the vehicle's tracking room near
-   obstacles, :mod:`uav_global_planner.core.path.tracking`) lowers ``w_i`` first.
+   obstacles, :mod:`uav_global_planner.core.path.tracking`) lowers ``w_i`` first. The bounds
+   are :mod:`uav_global_planner.core.path.interval_bounds`'s; an interval whose speed the curve
+   holds down is cut into quarters, bounded each on its own, while that shortens its crossing,
+   so that a near-cusp of the curve is slow only over micrometres.
 
 2. **A profile with piecewise constant acceleration** ``s0(t)``. For a window ``tau``, every
    interval takes the smallest ``alpha`` of the intervals that reach it within ``tau w`` and
@@ -65,20 +68,12 @@ from typing import List, Optional, Tuple
 
 import numpy as np
 
+from uav_global_planner.core.path.interval_bounds import MIN_ALPHA_SHARE, Stations as _Stations
 from uav_global_planner.core.path.motion_limits import MotionLimits
 from uav_global_planner.core.path.reference import ArcProfile, profile_from_pieces, TimedReference
 from uav_global_planner.core.path.smoothing import SmoothedPath
 from uav_global_planner.core.path.yaw import yaw_profile, YawProfile
 from uav_global_planner.core.result import Trajectory
-
-#: Share of an acceleration limit kept for tangential acceleration where the centripetal
-#: term takes the rest, and the smallest share of its tangential acceleration bound that a
-#: bend's jerk terms may take away before its speed is lowered [-].
-MIN_ALPHA_SHARE = 0.35
-
-#: Share of an acceleration limit that the centripetal term leaves to tangential
-#: acceleration in the tightest bends [-].
-TANGENTIAL_RESERVE = 0.35
 
 #: Windows tried, in units of max(alpha) / J: the last one proves the jerk for any profile.
 _WINDOW_FACTORS = (1.0, 2.0)
@@ -91,9 +86,6 @@ _REACH_RATIO = 0.8
 #: Bisection steps of :func:`_self_reach_min`: the cap it finds is within 2^-24 of the
 #: largest that fits, and always one that fits.
 _REACH_BISECTIONS = 24
-
-#: The slowest speed cap [m/s]: only a cusp of the curve gets it.
-_CRAWL = 1e-3
 
 #: Rounds of plateaus at the turns of the profile (each may leave new, smaller turns).
 _PLATEAU_ROUNDS = 3
@@ -175,8 +167,9 @@ def time_parameterize(smoothed: SmoothedPath, limits: MotionLimits = MotionLimit
     goal = positions[-1] if count else np.zeros(3)
     if count < 2 or not arc[-1] > 0.0:
         return _at_rest(smoothed, limits, yaw_mode, initial_yaw)
-    stations = _Stations.of(smoothed, speed_cap)
     box = limits.acceleration_box()
+    stations = _Stations.of(smoothed, speed_cap).refined(smoothed.curve, limits,
+                                                         box.horizontal, box.vertical)
     cap, alpha, zeta, shortest = stations.bounds(limits, box.horizontal, box.vertical)
     moving = start.speed > 0.0
     # With tau = max(alpha) / J a jump of alpha in the tangential acceleration over the
@@ -235,128 +228,6 @@ class _SampledMotion:
             return np.stack([np.interp(times, self._times, values[:, k]) for k in range(3)],
                             axis=1)
         return column(self._positions), column(self._velocities)
-
-
-@dataclass
-class _Stations:
-    """Arc lengths of the profile's stations and the curve's maxima over each interval."""
-
-    s: np.ndarray            # (n,) [m]
-    stop: np.ndarray         # (n,) bool: the speed is zero there
-    tangent: np.ndarray      # (n - 1, 2) largest |T_h|, |T_z|
-    curvature: np.ndarray    # (n - 1, 2) largest |K_h|, |K_z| [1/m]
-    curvature_norm: np.ndarray   # (n - 1,) largest |K| [1/m]
-    curvature_rate: np.ndarray   # (n - 1,) largest |K'| [1/m^2]
-    user_cap: np.ndarray     # (n - 1,) [m/s]
-
-    @classmethod
-    def of(cls, smoothed: SmoothedPath, speed_cap: Optional[np.ndarray]) -> '_Stations':
-        s = np.asarray(smoothed.arc_length, dtype=np.float64)
-        stop = np.zeros(len(s), dtype=bool)
-        stop[np.asarray(smoothed.stop_points, dtype=np.int64)] = True
-        tangent = np.asarray(smoothed.interval_tangent_max, dtype=np.float64)
-        curvature = np.asarray(smoothed.interval_curvature_max, dtype=np.float64)
-        if speed_cap is None:
-            user = np.full(len(s) - 1, np.inf)
-        else:
-            at = np.asarray(speed_cap, dtype=np.float64).reshape(-1)
-            user = np.minimum(at[:-1], at[1:])
-        # An interval between two stops gets a station in its middle, where the profile
-        # turns from accelerating to braking.
-        both = np.flatnonzero(stop[:-1] & stop[1:])
-        if len(both):
-            s = np.insert(s, both + 1, 0.5 * (s[both] + s[both + 1]))
-            stop = np.insert(stop, both + 1, False)
-            tangent = np.insert(tangent, both, tangent[both], axis=0)
-            curvature = np.insert(curvature, both, curvature[both], axis=0)
-            user = np.insert(user, both, user[both])
-        ds = np.diff(s)
-        # |K'| is proved per interval on the cubic pieces; |K| and its components are the
-        # curve's verification-sample maxima widened by |K'| times half the interval (every
-        # point of it is that close to a sample), within the proved |K|; the tangent
-        # components likewise by |K|.
-        proved_k, rate_max = smoothed.curve.derivative_bounds(s[:-1], s[1:])
-        half = 0.5 * ds
-        curvature_norm = np.minimum(np.hypot(curvature[:, 0], curvature[:, 1])
-                                    + rate_max * half, proved_k)
-        curvature = np.minimum(curvature + (rate_max * half)[:, None], proved_k[:, None])
-        tangent = np.minimum(tangent + (curvature_norm * half)[:, None], 1.0)
-        return cls(s=s, stop=stop, tangent=tangent, curvature=curvature,
-                   curvature_norm=curvature_norm, curvature_rate=rate_max,
-                   user_cap=user)
-
-    def bounds(self, limits: MotionLimits, accel_h: float,
-               accel_z: float) -> Tuple[np.ndarray, np.ndarray, np.ndarray, float]:
-        """Speed cap ``w`` [m/s], tangential acceleration bound ``alpha`` [m/s^2] and
-        tangential jerk allowance ``zeta`` [m/s^3] per interval (module docstring, step 1),
-        and the shortest window ``tau`` [s].
-
-        ``zeta = J - 3 w alpha |K| - w^3 |K'|`` is at least ``alpha / tau``: what a jump of
-        ``alpha`` over the window asks.
-        """
-        th, tz = self.tangent[:, 0], self.tangent[:, 1]
-        kh, kz = self.curvature[:, 0], self.curvature[:, 1]
-        keep = 1.0 - TANGENTIAL_RESERVE
-        cap = np.minimum.reduce([_ratio(limits.speed_horizontal, th),
-                                 _ratio(limits.speed_vertical, tz),
-                                 np.sqrt(_ratio(keep * accel_h, kh)),
-                                 np.sqrt(_ratio(keep * accel_z, kz)), self.user_cap])
-        alpha = np.minimum(_ratio(1.0, th) * (accel_h - cap ** 2 * kh),
-                           _ratio(1.0, tz) * (accel_z - cap ** 2 * kz))
-        # Jerk: alpha (J / max(alpha)) + 3 w alpha |K| + w^3 |K'| <= J. On a straight the
-        # tangential jerk takes all of J; in a bend speed matters more than tangential
-        # acceleration, so alpha gives way first (down to MIN_ALPHA_SHARE of itself), and only
-        # then the speed cap.
-        jerk = limits.jerk
-        per_alpha = jerk / float(np.max(alpha))
-        knorm, rate = self.curvature_norm, self.curvature_rate
-        spare = jerk - cap ** 3 * rate
-        wanted = spare / (per_alpha + 3.0 * cap * knorm)
-        alpha = np.clip(wanted, MIN_ALPHA_SHARE * alpha, alpha)
-        # (Within rounding: alpha was just fitted to this very sum.)
-        fits = alpha * (per_alpha + 3.0 * cap * knorm) + cap ** 3 * rate <= jerk * (1.0 + 1e-12)
-        cap = np.where(fits, cap, np.minimum(cap, _cubic_cap(3.0 * alpha * knorm, rate,
-                                                             jerk - alpha * per_alpha)))
-        zeta = jerk - 3.0 * cap * alpha * knorm - cap ** 3 * rate
-        # A cusp, whose curvature no bound can hold, is crawled through rather than stopped
-        # at for good.
-        cap = np.maximum(cap, _CRAWL)
-        return cap, alpha, np.maximum(zeta, alpha * per_alpha), 1.0 / per_alpha
-
-
-def _ratio(limit: float, component: np.ndarray) -> np.ndarray:
-    """``limit / component`` with +inf where the component vanishes."""
-    safe = np.where(component > 0.0, component, 1.0)
-    return np.where(component > 0.0, limit / safe, np.inf)
-
-
-def _quotient(numerator: np.ndarray, denominator: np.ndarray) -> np.ndarray:
-    """``numerator / denominator`` with +inf where the denominator vanishes."""
-    safe = np.where(denominator > 0.0, denominator, 1.0)
-    return np.where(denominator > 0.0, numerator / safe, np.inf)
-
-
-def _cubic_cap(linear: np.ndarray, cubic: np.ndarray, room: np.ndarray) -> np.ndarray:
-    """Largest ``w >= 0`` with ``linear * w + cubic * w^3 <= room`` (coefficients and room
-    >= 0, each per interval).
-
-    Newton's method from an upper bound decreases monotonically to the root (the left side is
-    convex and increasing); the result is rounded down.
-    """
-    room = np.broadcast_to(np.maximum(room, 0.0), np.shape(linear))
-    w = np.minimum(_quotient(room, linear), np.cbrt(_quotient(room, cubic)))
-    finite = np.isfinite(w)
-    x = w[finite]
-    a, b, c = linear[finite], cubic[finite], room[finite]
-    for _ in range(60):
-        value = a * x + b * x ** 3 - c
-        slope = a + 3.0 * b * x ** 2
-        step = np.where(slope > 0.0, value / np.where(slope > 0.0, slope, 1.0), 0.0)
-        x = x - np.maximum(step, 0.0)
-        if np.all(step <= 1e-14 * np.maximum(x, 1e-12)):
-            break
-    w[finite] = x * (1.0 - 1e-12)
-    return w
 
 
 class _MinTable:
