@@ -1,5 +1,9 @@
 """The plan-wide budget: TIMEOUT naming the stage, cancellation, progress, via-points."""
 
+import json
+import os
+import subprocess
+import sys
 import time
 
 import numpy as np
@@ -8,7 +12,7 @@ import pytest
 from uav_global_planner.core.budget import PlanBudget, PlanStage
 from uav_global_planner.core.config import PlannerConfig
 from uav_global_planner.core.errors import PlanningCancelledError, PlanningTimeoutError
-from uav_global_planner.core.jit import compile_seconds, JIT_ENABLED, njit
+from uav_global_planner.core.jit import compile_seconds, JIT_ENABLED, njit, one_off_seconds
 from uav_global_planner.core.map.obstacles import Box, ObstacleSet, PointSet, Sphere
 from uav_global_planner.core.planner import Planner
 from uav_global_planner.core.status import PlanStatus
@@ -48,6 +52,49 @@ def test_a_kernel_compiled_meanwhile_does_not_spend_the_budget():
     elapsed = budget.elapsed_s
     wall = time.perf_counter() - budget.started
     assert 0.0 <= elapsed <= wall - compiled
+
+
+# A fresh process plans a small scene under a 0.3 s budget and prints the status and its
+# one-off kernel seconds (compiled, or loaded from numba's cache).
+_FRESH_PLAN = """
+import json
+from uav_global_planner.core import Planner, PlannerConfig, Sphere, ObstacleSet
+from uav_global_planner.core.jit import kernel_counts, one_off_seconds
+config = PlannerConfig(bounds_min=(-2.0, -2.0, 0.0), bounds_max=(2.0, 2.0, 3.0), resolution=0.25,
+                       max_planning_time=0.3)
+planner = Planner(config, ObstacleSet([Sphere([0.0, 0.0, 1.5], 0.6)]))
+result = planner.plan([-1.5, -1.5, 0.5], [1.5, 1.5, 2.0])
+print(json.dumps({'status': result.status.value, 'one_off_s': one_off_seconds(),
+                  'loaded': kernel_counts().loaded}))
+"""
+
+
+@pytest.mark.skipif(not JIT_ENABLED, reason='numba is disabled')
+def test_loading_kernels_from_the_cache_does_not_spend_the_budget():
+    """Every new process loads its kernels from numba's cache once (about a second here, more
+    on a loaded machine): a 0.3 s budget on a small scene still plans, and the time is counted
+    as one-off work."""
+    env = dict(os.environ)
+    runs = [subprocess.run([sys.executable, '-c', _FRESH_PLAN], capture_output=True, text=True,
+                           env=env, timeout=600) for _ in range(2)]   # the first may compile
+    for run in runs:
+        assert run.returncode == 0, run.stdout + run.stderr
+    second = json.loads(runs[1].stdout.strip().splitlines()[-1])
+    assert second['loaded'] > 0, second            # the kernels came from the cache
+    assert second['one_off_s'] > 0.0, second
+    assert second['status'] == 'ok', (second, runs[1].stderr)
+
+
+def test_one_off_seconds_include_compilations():
+    """A compilation is one-off work too (the budget subtracts both)."""
+    before = one_off_seconds()
+
+    @njit(cache=False)
+    def kernel(values):
+        return values.sum()
+
+    kernel(np.arange(3.0))
+    assert one_off_seconds() > before
 
 
 def test_grid_build_out_of_budget_is_a_timeout_of_that_stage():

@@ -6,35 +6,12 @@ the machine has available). ``--help`` of every command lists them.
 """
 
 import argparse
-from dataclasses import replace
 import json
-import math
 import sys
-from typing import Any, Callable, List, NoReturn, Optional, Tuple
+from typing import Any, Callable, Dict, List, NoReturn, Optional, Sequence
 
-import numpy as np
-
-from uav_global_planner.cli.compare import compare_algorithms
-from uav_global_planner.cli.export import add_export_command, run_export
-from uav_global_planner.cli.memory import (allowance_bytes, check as check_memory, estimate,
-                                           gigabytes, limited, MemoryLimitError, SEARCH_MAX_NODES)
-from uav_global_planner.cli.options import (add_algorithm_option, check_image_file, EXIT_CODES,
-                                            HelpFormatter, join_negative_values, scene_help)
-from uav_global_planner.cli.report import (admission_lines, admission_to_dict, finite_or_none,
-                                           format_summary, format_table, map_report_lines,
-                                           result_to_dict)
-from uav_global_planner.core.budget import PlanBudget, PlanStage
-from uav_global_planner.core.config import validate_config
-from uav_global_planner.core.errors import InvalidInputError, PlanningError
-from uav_global_planner.core.io.mapfiles import load_map_files
-from uav_global_planner.core.io.scene import find_scene, load_scene, Scene, with_ground
-from uav_global_planner.core.map.airspace import Airspace, load_geofence
-from uav_global_planner.core.map.obstacles import ObstacleSet
-from uav_global_planner.core.map.unknown_space import combine, unknown_from_map_files
-from uav_global_planner.core.path.motion_limits import MotionLimits
-from uav_global_planner.core.planner import Planner
-from uav_global_planner.core.result import PlanResult
-from uav_global_planner.core.search.start_admission import Admission, admit, explain, GOAL, START
+from uav_global_planner.cli.options import (add_algorithm_option, EXIT_CODES, HelpFormatter,
+                                            join_negative_values, scene_help)
 from uav_global_planner.core.settings import format_value, Kind, planner_settings, Setting
 from uav_global_planner.core.status import PlanStatus
 
@@ -42,11 +19,19 @@ EXIT_OK = 0
 EXIT_PLAN_FAILED = 1
 EXIT_INVALID_INPUT = 2
 
-# Grids from this many nodes up are announced on stderr, with their memory, before they are built.
-_ANNOUNCE_GRID_NODES = 10_000_000
-# How to shrink a plan that does not fit into memory.
-_MEMORY_FIX = ('raise --resolution or shrink the bounds (--max-voxels only lifts the node cap), '
-               'or use an algorithm that reaches fewer nodes (adaptive, octile)')
+# The sub-commands, in the order of the help, with their line there. bench, fleet and warmup
+# read their own options (the main() of their modules).
+_COMMANDS = {
+    'plan': 'plan once and print the result',
+    'compare': "the paper's table: every algorithm",
+    'bench': 'performance figures of every shipped scene (uav-plan bench --help)',
+    'fleet': "plan and deconflict a fleet's missions on Ray (uav-plan fleet --help)",
+    'plot': 'draw the raw and the smoothed path in 3D',
+    'export': 'write a certified mission file (QGroundControl .plan or QGC WPL 110)',
+    'warmup': "compile the planner's kernels into their cache once, so that a first plan "
+              'does not wait for it (uav-plan warmup --help)',
+}
+_OWN_PARSERS = ('bench', 'fleet', 'warmup')
 
 
 class _UsageError(Exception):
@@ -157,28 +142,21 @@ def _add_setting_flags(parser: argparse.ArgumentParser) -> None:
                             metavar=metavar, help=entry.help_text())
 
 
-def _parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog='uav-plan', description=__doc__.splitlines()[0])
-    commands = parser.add_subparsers(dest='command', required=True)
-
-    plan = commands.add_parser('plan', help='plan once and print the result')
+def _add_plan_options(plan: argparse.ArgumentParser) -> None:
     _add_scene_options(plan)
     add_algorithm_option(plan)
     plan.add_argument('--json', action='store_true', help='print one JSON object')
 
-    compare = commands.add_parser('compare', help="the paper's table: every algorithm")
+
+def _add_compare_options(compare: argparse.ArgumentParser) -> None:
     _add_scene_options(compare)
     compare.add_argument('--repeats', type=int, default=5,
                          help='runs per algorithm; the median time is reported')
     compare.add_argument('--json', action='store_true', help='print JSON')
     compare.add_argument('--plot', metavar='PNG', help='also draw every path into this file')
 
-    commands.add_parser('bench', help='performance figures of every shipped scene '
-                        '(uav-plan bench --help)', add_help=False)
-    commands.add_parser('fleet', help="plan and deconflict a fleet's missions on Ray "
-                        '(uav-plan fleet --help)', add_help=False)
 
-    plot = commands.add_parser('plot', help='draw the raw and the smoothed path in 3D')
+def _add_plot_options(plot: argparse.ArgumentParser) -> None:
     _add_scene_options(plot)
     add_algorithm_option(plot)
     plot.add_argument('-o', '--output', metavar='PNG',
@@ -188,214 +166,32 @@ def _parser() -> argparse.ArgumentParser:
     plot.add_argument('--profile', metavar='PNG',
                       help='speed, acceleration, jerk and tilt against time, with the limits')
 
-    add_export_command(commands, _add_scene_options)
+
+_COMMAND_OPTIONS: Dict[str, Callable[[argparse.ArgumentParser], None]] = {
+    'plan': _add_plan_options, 'compare': _add_compare_options, 'plot': _add_plot_options}
+
+
+def _parser(full: Optional[Sequence[str]] = None) -> argparse.ArgumentParser:
+    """The ``uav-plan`` command line.
+
+    Parameters
+    ----------
+    full : sequence of str, optional
+        The sub-commands that get their options (all when None); the others get their name
+        and help line only, so that ``uav-plan --help`` and one command's parser do not import
+        what the other commands' options need (the shipped scenes, the mission module).
+    """
+    parser = _Parser(prog='uav-plan', description=__doc__.splitlines()[0])
+    commands = parser.add_subparsers(dest='command', required=True)
+    for name, text in _COMMANDS.items():
+        if name in _OWN_PARSERS or (full is not None and name not in full):
+            commands.add_parser(name, help=text, add_help=False)
+        elif name == 'export':
+            from uav_global_planner.cli.export import add_export_command
+            add_export_command(commands, _add_scene_options)
+        else:
+            _COMMAND_OPTIONS[name](commands.add_parser(name, help=text))
     return parser
-
-
-def _scene_from_args(args: argparse.Namespace) -> Scene:
-    changes = {}
-    for entry in planner_settings():
-        value = getattr(args, _setting_dest(entry), None) if entry.flag else None
-        if value is not None and entry.field:
-            changes[entry.field] = value
-    # The options replace the scene's values before it is validated, so --max-voxels can admit
-    # a grid the scene's own cap refuses.
-    scene = load_scene(find_scene(args.scene), overrides=changes,
-                       terrain_file=_terrain_file(args.terrain))
-    if args.via:
-        scene = replace(scene, via=np.asarray(args.via, dtype=np.float64).reshape(-1, 3))
-    if args.geofence:
-        scene = _with_geofence(scene, args.geofence)
-    if args.map_downsample is not None and not args.map:
-        raise InvalidInputError('--map-downsample needs at least one --map FILE')
-    if not args.map:
-        return scene
-    try:
-        # 0 means no downsampling, as for the node's map_downsample.
-        # Checked against the bounds and delta; gamma as asked, without the scene's map margin.
-        config = scene.config
-        maps = load_map_files(args.map, args.map_downsample or None,
-                              bounds=(config.bounds_min, config.bounds_max),
-                              reach=config.safety_margin - scene.map_margin_m,
-                              resolution=config.resolution)
-    except InvalidInputError as error:
-        raise type(error)(f'--map: {error}') from None
-    # gamma as asked, plus the largest margin of any map (see core.mapfiles).
-    margin = max(scene.map_margin_m, maps.margin_m)
-    gamma = scene.config.safety_margin - scene.map_margin_m + margin
-    return replace(scene, config=validate_config(replace(scene.config, safety_margin=gamma)),
-                   obstacles=ObstacleSet([*scene.obstacles.items, maps.obstacle()]),
-                   map_margin_m=margin, map_reports=scene.map_reports + maps.reports,
-                   unknown=combine([scene.unknown, unknown_from_map_files(
-                       args.map, config.bounds_min, config.bounds_max)]))
-
-
-def _terrain_file(text: Optional[str]) -> Optional[str]:
-    """``--terrain FILE`` as given (None without it); an ``.npy`` file is refused: its
-    lattice needs an origin and a spacing, which only the scene's ``terrain`` key gives."""
-    if text and text.lower().endswith('.npy'):
-        raise InvalidInputError(f'--terrain: {text}: an .npy terrain needs its origin and '
-                                "spacing: give it in the scene's terrain key")
-    return text or None
-
-
-def _with_geofence(scene: Scene, path: str) -> Scene:
-    """``scene`` with the fences and zones of a geofence file instead of its own."""
-    airspace = load_geofence(path, scene.geodetic_origin, scene.config.bounds_min[2],
-                             scene.config.bounds_max[2])
-    own = {id(shape) for shape in scene.airspace.shapes()}
-    others = [item for item in scene.obstacles.items if id(item) not in own]
-    return replace(scene, obstacles=ObstacleSet(others + list(airspace.shapes())),
-                   airspace=airspace)
-
-
-def _without_geofence(scene: Scene) -> Scene:
-    """``scene`` with its obstacles only: the unconstrained plan, for comparison."""
-    own = {id(shape) for shape in scene.airspace.shapes()}
-    others = [item for item in scene.obstacles.items if id(item) not in own]
-    return replace(scene, obstacles=ObstacleSet(others), airspace=Airspace())
-
-
-def _warm_planner(scene: Scene, budget: PlanBudget) -> Tuple[Planner, bool]:
-    """A planner with its grid built within the plan's ``budget`` and its kernels loaded, so
-    the reported time is search; and whether the grid is built (False: the budget ran out
-    during the build, which the plan with that budget then reports, naming the stage)."""
-    planner = Planner(scene.config, scene.obstacles, unknown=scene.unknown)
-    try:
-        planner.warm_up(budget)
-    except PlanningError:
-        return planner, False
-    return planner, True
-
-
-def _plan_admitted(planner: Planner, scene: Scene, algorithm: str, ready: bool = True,
-                   **options: Any) -> Tuple[PlanResult, Tuple[Admission, Admission]]:
-    """Plan the scene from its start to its goal, each first admitted by the scene's
-    start_tolerance (:mod:`uav_global_planner.core.search.start_admission`): a start or goal on the
-    ground is lifted to the lowest free height, and a refusal says how far and the fix.
-    Without a grid (``ready`` False: the budget ran out building it) the points are taken as
-    asked and the plan reports the timeout."""
-    admissions = ((admit(planner, scene.start, START), admit(planner, scene.goal, GOAL))
-                  if ready else (Admission(START, scene.start, scene.start),
-                                 Admission(GOAL, scene.goal, scene.goal)))
-    result = planner.plan(admissions[0].point, admissions[1].point, algorithm, via=scene.via,
-                          **options)
-    return explain(result, admissions), admissions
-
-
-def _progress_to_stderr(stage: PlanStage, elapsed_s: float, budget_s: float) -> None:
-    """Progress of a long plan, on stderr so that ``--json`` output stays one object."""
-    limit = f' of {budget_s:g} s' if budget_s > 0 else ''
-    print(f'planning: {stage.value} after {elapsed_s:.1f} s{limit}', file=sys.stderr,
-          flush=True)
-
-
-def _run_plan(args: argparse.Namespace, scene: Scene) -> int:
-    # One budget from the grid build on: max_planning_time bounds the whole plan.
-    budget = PlanBudget(scene.config.max_planning_time, progress=_progress_to_stderr)
-    planner, ready = _warm_planner(scene, budget)
-    result, admissions = _plan_admitted(planner, scene, args.algorithm, ready, budget=budget)
-    if args.json:
-        output = result_to_dict(result)
-        output.update(admission_to_dict(admissions))
-        output['map_files'] = [report.as_dict() for report in scene.map_reports]
-        print(json.dumps(output))
-    else:
-        print(f'scene: {scene.name}')
-        for line in map_report_lines(scene.map_reports) + admission_lines(admissions):
-            print(line)
-        print(format_summary(result))
-    return EXIT_OK if result.ok else EXIT_PLAN_FAILED
-
-
-def _run_compare(args: argparse.Namespace, scene: Scene) -> int:
-    if args.repeats < 1:
-        raise InvalidInputError(f'--repeats must be >= 1, got {args.repeats}')
-    check_image_file('--plot', args.plot)
-    rows = compare_algorithms(scene, repeats=args.repeats)
-    if len(scene.airspace):
-        # The unconstrained optimum beside the fenced plans: what the geofence costs.
-        free = compare_algorithms(_without_geofence(scene), algorithms=('octile',),
-                                  repeats=args.repeats)
-        fenced = [row.result.path_length_m / row.relative_cost for row in rows
-                  if row.result.ok and math.isfinite(row.relative_cost)]
-        optimum = fenced[0] if fenced else math.nan
-        rows += [replace(row, algorithm='octile, no geofence',
-                         relative_cost=row.result.path_length_m / optimum) for row in free]
-    if args.json:
-        print(json.dumps({
-            'scene': scene.name,
-            'rows': [{'algorithm': row.algorithm, 'status': row.result.status.value,
-                      'median_time_s': row.median_time_s, 'runs': row.runs,
-                      'path_length_m': finite_or_none(row.result.path_length_m),
-                      'expanded_nodes': row.result.expanded_nodes,
-                      'relative_cost': finite_or_none(row.relative_cost),
-                      'smoothed_length_m': finite_or_none(row.result.smoothed_length_m),
-                      'min_clearance_m': finite_or_none(row.result.min_clearance_m),
-                      'flight_time_s': finite_or_none(row.result.duration_s),
-                      'energy_wh': finite_or_none(row.result.energy.energy_wh
-                                                  if row.result.energy else math.nan)}
-                     for row in rows],
-            'map_files': [report.as_dict() for report in scene.map_reports]}))
-    else:
-        grid = f'{scene.config.resolution} m grid'
-        print(f'{scene.name}: {len(scene.obstacles)} obstacles, {grid}, gamma '
-              f'{scene.config.safety_margin} m, eta {scene.config.adaptive_threshold} m, '
-              f'median of {args.repeats} runs')
-        for line in map_report_lines(scene.map_reports):
-            print(line)
-        print(format_table(
-            ['algorithm', 'time [ms]', 'length [m]', 'expanded', 'vs optimum',
-             'smoothed [m]', 'clearance [m]', 'flight [s]', 'energy [Wh]', 'status'],
-            [[row.algorithm, f'{row.median_time_s * 1e3:.3f}',
-              f'{row.result.path_length_m:.3f}', str(row.result.expanded_nodes),
-              f'{(row.relative_cost - 1) * 100:+.2f} %', f'{row.result.smoothed_length_m:.3f}',
-              f'{row.result.min_clearance_m:.3f}', f'{row.result.duration_s:.1f}',
-              f'{row.result.energy.energy_wh if row.result.energy else math.nan:.2f}',
-              row.result.status.value]
-             for row in rows]))
-    if args.plot:
-        from uav_global_planner.cli.plotting import plot_scene_paths
-        paths = {row.algorithm: row.result.smoothed_path for row in rows if row.result.ok}
-        plot_scene_paths(scene, paths, args.plot,
-                         title=f'{scene.name}: smoothed paths of every algorithm')
-        print(f'plot written to {args.plot}', file=sys.stderr if args.json else sys.stdout)
-    failed = any(row.result.status is not PlanStatus.OK for row in rows)
-    return EXIT_PLAN_FAILED if failed else EXIT_OK
-
-
-def _run_plot(args: argparse.Namespace, scene: Scene) -> int:
-    from uav_global_planner.cli.plotting import plot_scene_html, plot_scene_paths
-    if not args.output and not args.html and not args.profile:
-        raise InvalidInputError('plot needs -o PNG, --html FILE, --profile PNG or more')
-    check_image_file('-o', args.output)
-    check_image_file('--profile', args.profile)
-    budget = PlanBudget(scene.config.max_planning_time, progress=_progress_to_stderr)
-    planner, ready = _warm_planner(scene, budget)
-    result, admissions = _plan_admitted(planner, scene, args.algorithm, ready, budget=budget)
-    for line in map_report_lines(scene.map_reports) + admission_lines(admissions):
-        print(line)
-    print(format_summary(result))
-    if not result.ok:
-        return EXIT_PLAN_FAILED
-    paths = {f'{args.algorithm} raw': result.path,
-             f'{args.algorithm} smoothed': result.smoothed_path}
-    title = f'{scene.name}: {args.algorithm}'
-    if scene.unknown is not None:
-        title += (f', {result.unknown_length_m:.1f} m in unknown space '
-                  f'({scene.config.unknown_space})')
-    if args.output:
-        plot_scene_paths(scene, paths, args.output, title=title)
-        print(f'plot written to {args.output}')
-    if args.html:
-        plot_scene_html(scene, paths, args.html, title=title)
-        print(f'interactive view written to {args.html}')
-    if args.profile and result.trajectory is not None:
-        from uav_global_planner.cli.profile_plot import plot_profile
-        plot_profile(result.trajectory, MotionLimits.from_config(scene.config), args.profile,
-                     title=title)
-        print(f'time profile written to {args.profile}')
-    return EXIT_OK
 
 
 def main(argv: Optional[List[str]] = None) -> int:
@@ -408,7 +204,11 @@ def main(argv: Optional[List[str]] = None) -> int:
     if argv[:1] == ['fleet']:
         from uav_global_planner.cli.fleet import main as fleet_main
         return fleet_main(argv[1:])
-    parser = _parser()
+    if argv[:1] == ['warmup']:
+        from uav_global_planner.cli.warmup import main as warmup_main
+        return warmup_main(argv[1:])
+    # Only the command asked for gets its options: the help alone imports no planner.
+    parser = _parser(full=argv[:1])
     try:
         args = parser.parse_args(argv)
     except _UsageError as error:
@@ -419,42 +219,9 @@ def main(argv: Optional[List[str]] = None) -> int:
             error.parser.print_usage(sys.stderr)
             print(f'{error.parser.prog}: error: {error.reason}', file=sys.stderr)
         return EXIT_INVALID_INPUT
-    try:
-        scene = _scene_from_args(args)
-        # The ground and its AGL band for the final planning margin (a map raises gamma).
-        scene = with_ground(scene, scene.terrain)
-        runner = {'plan': _run_plan, 'compare': _run_compare, 'plot': _run_plot,
-                  'export': run_export}[args.command]
-        allowance = _memory_allowance(scene)
-        try:
-            with limited(allowance):
-                return runner(args, scene)
-        except MemoryError:
-            raise MemoryLimitError(
-                f'out of memory: {estimate(scene.config, scene.obstacles).describe()}; the '
-                f'plan needed more than the {gigabytes(allowance or 0)} available: '
-                f'{_MEMORY_FIX}') from None
-    except (InvalidInputError, MemoryLimitError) as error:
-        if getattr(args, 'json', False) and args.command == 'plan':
-            _print_invalid_json(str(error), args.algorithm)
-        else:
-            print(f'uav-plan: error: {error}', file=sys.stderr)
-        return EXIT_INVALID_INPUT
-
-
-def _memory_allowance(scene: Scene) -> Optional[int]:
-    """What the plan may allocate [bytes] (None: not known), after refusing a grid larger than
-    that; a large grid is announced on stderr with its memory."""
-    figures = estimate(scene.config, scene.obstacles)
-    if figures.nodes > SEARCH_MAX_NODES:
-        raise InvalidInputError(f'grid of {figures.nodes:.3g} nodes: the search supports at most '
-                                f'{SEARCH_MAX_NODES}; raise --resolution or shrink the bounds')
-    allowance = allowance_bytes()
-    check_memory(figures, allowance, _MEMORY_FIX)
-    if figures.nodes >= _ANNOUNCE_GRID_NODES:
-        room = f'; {gigabytes(allowance)} available' if allowance is not None else ''
-        print(f'planning: {figures.describe()}{room}', file=sys.stderr, flush=True)
-    return allowance
+    # The planner and the scene modules, imported once a command needs them.
+    from uav_global_planner.cli.commands import run_command
+    return run_command(args)
 
 
 def _print_invalid_json(message: str, algorithm: Optional[str]) -> None:

@@ -9,9 +9,10 @@ says so (the pattern of Nav2's ``cancel_checker``) and
 is spent. A plan that runs longer than :data:`REPORT_AFTER_S` reports its stage through the
 ``progress`` callback, at each stage change and every :data:`REPORT_EVERY_S`.
 
-The budget counts wall time less the time numba spends compiling kernels meanwhile
-(:func:`~uav_global_planner.core.jit.compile_seconds`): a first run after an install compiles
-them once (they are kept on disk), and that one-off cost says nothing about the plan.
+The budget counts wall time less the time numba spends compiling kernels or loading them from
+its cache meanwhile (:func:`~uav_global_planner.core.jit.one_off_seconds`): a first run after an
+install compiles them once (they are kept on disk), every new process loads them once, and
+that one-off cost says nothing about the plan.
 """
 
 from enum import Enum
@@ -20,7 +21,7 @@ import time
 from typing import Callable, Optional
 
 from uav_global_planner.core.errors import PlanningCancelledError, PlanningTimeoutError
-from uav_global_planner.core.jit import compile_seconds
+from uav_global_planner.core.jit import one_off_seconds
 
 #: A plan reports progress once it has run this long [s].
 REPORT_AFTER_S = 1.0
@@ -60,14 +61,14 @@ class PlanBudget:
         self._cancel = cancel
         self._progress = progress
         self.started = time.perf_counter()
-        self._compiled_before = compile_seconds()
+        self._compiled_before = one_off_seconds()
         self.stage = PlanStage.GRID
         self._last_report = -math.inf
 
     @property
     def elapsed_s(self) -> float:
-        """Time since the request began, less kernel compilation meanwhile [s]."""
-        compiling = compile_seconds() - self._compiled_before
+        """Time since the request began, less kernel compilation and loading meanwhile [s]."""
+        compiling = one_off_seconds() - self._compiled_before
         return time.perf_counter() - self.started - compiling
 
     def enter(self, stage: PlanStage) -> None:
