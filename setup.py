@@ -42,6 +42,8 @@ setup(
                     'fleet': ['ray'],
                     # setpoint_follower --mavlink (ArduPilot, MAVSDK, PX4 over MAVLink).
                     'mavlink': ['pymavlink'],
+                    # The peers that benchmarks/bench_search_peers.py measures against.
+                    'peers': ['ompl', 'dijkstra3d'],
                     # The documentation in docs/ (Sphinx with MyST).
                     'docs': ['sphinx', 'myst-parser', 'furo']},
     # The shipped scenes are read as files (importlib.resources paths), so never as a zip.
