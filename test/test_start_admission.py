@@ -1,5 +1,6 @@
 """Starts and goals on the ground: lifted straight up by at most start_tolerance, or refused
-with the distance and the fix (core/search/start_admission.py), in the core and through ``uav-plan``."""
+with the distance and the fix (core/search/start_admission.py), in the core and through
+``uav-plan``."""
 
 import json
 from pathlib import Path
