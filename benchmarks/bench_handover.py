@@ -23,6 +23,7 @@ import numpy as np
 
 from uav_global_planner.core.config import validate_config
 from uav_global_planner.core.io.scene import find_scene, load_scene
+from uav_global_planner.core.path.timing import longest_crawl
 from uav_global_planner.core.planner import Planner
 
 #: The handover tolerances [m], [m/s], [m/s^2].
@@ -42,17 +43,6 @@ CASES = {
 }
 
 
-def longest_crawl(trajectory) -> float:
-    """Longest time [s] the reference moves slower than CRAWL_SPEED before its end."""
-    times = np.arange(0.0, trajectory.duration_s, CRAWL_STEP_S)
-    slow = np.linalg.norm(trajectory.state_at(times).velocity, axis=1) < CRAWL_SPEED
-    longest = run = 0
-    for flag in slow[:-1]:
-        run = run + 1 if flag else 0
-        longest = max(longest, run)
-    return longest * CRAWL_STEP_S
-
-
 def jumps(planner: Planner, first, goal: Sequence[float],
           count: int) -> List[Tuple[float, float, float, float, float]]:
     """(takeover time, |dp|, |dv|, |da|, longest crawl [s]) at ``count`` takeover times of the
@@ -68,11 +58,13 @@ def jumps(planner: Planner, first, goal: Sequence[float],
         if not result.ok:
             out.append((at, np.nan, np.nan, np.nan, np.nan))
             continue
-        new = result.trajectory.state_at(0.0)
+        replanned = result.trajectory
+        assert replanned is not None  # an ok result carries its trajectory
+        new = replanned.state_at(0.0)
         out.append((at, float(np.linalg.norm(new.position[0] - state.position[0])),
                     float(np.linalg.norm(new.velocity[0] - state.velocity[0])),
                     float(np.linalg.norm(new.acceleration[0] - state.acceleration[0])),
-                    longest_crawl(result.trajectory)))
+                    longest_crawl(replanned, CRAWL_SPEED, CRAWL_STEP_S)))
     return out
 
 

@@ -18,7 +18,8 @@ import os
 from pathlib import Path
 import threading
 import time
-from typing import Any, Callable, Dict, Iterator, List, Mapping, Optional, Sequence
+from typing import (Any, Callable, Dict, Iterator, List, Mapping, Optional, Sequence,
+                    TYPE_CHECKING)
 
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
@@ -26,9 +27,11 @@ from geometry_msgs.msg import Point, PoseStamped, Quaternion, Vector3
 from nav_msgs.msg import Odometry, Path as PathMsg
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
+import rclpy
 from rclpy.parameter import Parameter, parameter_value_to_python
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import QoSProfile
+from rclpy.signals import SignalHandlerOptions
 from std_msgs.msg import Header
 from visualization_msgs.msg import Marker, MarkerArray
 
@@ -44,6 +47,9 @@ from uav_global_planner_tools.domains import (candidate_domains, domain_in_use,
                                               environment_domain_id, SAFE_DOMAIN_IDS)
 from uav_global_planner_tools.processes import (localhost_discovery, NodeProcess,  # noqa: F401
                                                 NodeProcessError, ros_environment, wait_until)
+
+if TYPE_CHECKING:
+    from uav_global_planner.ros.planner_node import PlannerNode
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 PLANNER_YAML = REPO_ROOT / 'config' / 'planner.yaml'
@@ -490,6 +496,31 @@ def planner_session(namespace: str, parameters: Optional[Mapping[str, Any]] = No
     finally:
         client.close()
         process.kill()
+
+
+@contextmanager
+def in_process_planner(parameter_overrides: Optional[List[Parameter]] = None
+                       ) -> Iterator['PlannerNode']:
+    """A planner node in this process, in a context of its own on a free domain (no signal
+    handlers); closed, and the context shut down, on leaving.
+
+    Parameters
+    ----------
+    parameter_overrides : list of rclpy.parameter.Parameter, optional
+        Values the node starts with instead of its defaults.
+    """
+    from uav_global_planner.ros.planner_node import PlannerNode
+    context = rclpy.Context()
+    rclpy.init(context=context, domain_id=unique_domain_id(),
+               signal_handler_options=SignalHandlerOptions.NO)
+    node = None
+    try:
+        node = PlannerNode(context=context, parameter_overrides=parameter_overrides)
+        yield node
+    finally:
+        if node is not None:
+            node.close()
+        rclpy.try_shutdown(context=context)
 
 
 def assert_start_file_refused(planner: PlannerClient, setting: str, file: Path,

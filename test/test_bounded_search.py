@@ -9,11 +9,9 @@ from typing import List, Union
 
 import numpy as np
 import pytest
-import rclpy
 from rclpy.parameter import Parameter
-from rclpy.signals import SignalHandlerOptions
 
-from ros_harness import unique_domain_id
+from ros_harness import in_process_planner
 from uav_global_planner.core.config import PlannerConfig, validate_config
 from uav_global_planner.core.errors import InvalidInputError
 from uav_global_planner.core.io.scene import find_scene, load_scene
@@ -27,7 +25,6 @@ from uav_global_planner.core.search.bounded_kernel import kernel_masks
 from uav_global_planner.core.search.coarse_guide import _cell_open
 from uav_global_planner.core.search.grid_search import SearchWorkspace
 from uav_global_planner.core.status import PlanStatus
-from uav_global_planner.ros.planner_node import PlannerNode
 
 DELTA = 0.25
 ETA = 1.5
@@ -154,12 +151,7 @@ def test_planner_plan_with_bounded_keeps_its_certificates() -> None:
 
 @pytest.mark.ros
 def test_node_accepts_bounded_and_refuses_a_bad_bound_keeping_the_last_good() -> None:
-    context = rclpy.Context()
-    rclpy.init(context=context, domain_id=unique_domain_id(),
-               signal_handler_options=SignalHandlerOptions.NO)
-    node = None
-    try:
-        node = PlannerNode(context=context)
+    with in_process_planner() as node:
         ros = node.node
         (result,) = ros.set_parameters([Parameter('algorithm', value='bounded')])
         assert result.successful, result.reason
@@ -171,10 +163,6 @@ def test_node_accepts_bounded_and_refuses_a_bad_bound_keeping_the_last_good() ->
             assert 'bound' in result.reason, result.reason
             assert ros.get_parameter('bound').value == 1.2
         assert ros.get_parameter('algorithm').value == 'bounded'
-    finally:
-        if node is not None:
-            node.close()
-        rclpy.try_shutdown(context=context)
 
 
 def test_uav_plan_takes_bounded_and_refuses_a_bad_bound() -> None:

@@ -18,7 +18,7 @@ import pytest
 from uav_global_planner.core import Planner, PlannerConfig
 from uav_global_planner.core.map.obstacles import Box, ObstacleSet
 from uav_global_planner.core.path.motion_limits import MotionLimits
-from uav_global_planner.core.path.timing import check_limits
+from uav_global_planner.core.path.timing import check_limits, longest_crawl
 
 #: The box the vehicle flies at [m] (ENU), 1 m wide.
 CENTER = np.array([0.0, 0.0, 2.5])
@@ -26,17 +26,6 @@ CENTER = np.array([0.0, 0.0, 2.5])
 CONFIG = PlannerConfig(bounds_min=(-20.0, -20.0, 0.0), bounds_max=(20.0, 20.0, 8.0),
                        safety_margin=0.5, vehicle_radius=0.41, tracking_margin=0.3,
                        max_planning_time=60.0)
-
-
-def longest_crawl(trajectory, below: float = 0.01, step: float = 0.01) -> float:
-    """Longest time [s] the reference moves slower than ``below`` [m/s] before its end."""
-    times = np.arange(0.0, trajectory.duration_s, step)
-    slow = np.linalg.norm(trajectory.state_at(times).velocity, axis=1) < below
-    longest = run = 0
-    for flag in slow[:-1]:
-        run = run + 1 if flag else 0
-        longest = max(longest, run)
-    return longest * step
 
 
 @pytest.fixture(scope='module')

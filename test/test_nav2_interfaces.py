@@ -31,7 +31,7 @@ from typing import Dict
 
 from catkin_pkg.packages import find_packages
 from helpers.interface_packages import (assert_build_is_current, compiled_type_hash,
-                                        prefix_of)
+                                        hash_differences, prefix_of)
 import pytest
 
 from uav_global_planner.core import status
@@ -129,10 +129,7 @@ def test_dependency_hashes_equal_those_of_the_jazzy_build():
 
 
 def test_built_action_hashes_equal_nav2_jazzy():
-    prefix = prefix_of(nav2_msgs)
-    found = {name: compiled_type_hash(name, prefix) for name in JAZZY_TYPE_HASHES}
-    wrong = {name: (found[name], JAZZY_TYPE_HASHES[name]) for name in found
-             if found[name] != JAZZY_TYPE_HASHES[name]}
+    wrong = hash_differences(nav2_msgs, JAZZY_TYPE_HASHES)
     assert not wrong, f'type hashes differ from Nav2 Jazzy (built, expected): {wrong}'
 
 

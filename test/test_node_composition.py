@@ -12,12 +12,10 @@ import threading
 from typing import Any, Dict, Iterator, List, Set, Tuple
 
 import pytest
-import rclpy
 from rclpy.impl.rcutils_logger import RcutilsLogger
 from rclpy.node import Node
-from rclpy.signals import SignalHandlerOptions
 
-from ros_harness import unique_domain_id
+from ros_harness import in_process_planner
 from uav_global_planner.core.io.mapfiles import MapPoints
 from uav_global_planner.core.map.live_map import LiveMapBuilder
 from uav_global_planner.core.planner import Planner
@@ -50,17 +48,8 @@ TOPIC_OWNERS = {
 
 @pytest.fixture(scope='module')
 def planner() -> Iterator[PlannerNode]:
-    context = rclpy.Context()
-    rclpy.init(context=context, domain_id=unique_domain_id(),
-               signal_handler_options=SignalHandlerOptions.NO)
-    node = None
-    try:
-        node = PlannerNode(context=context)
+    with in_process_planner() as node:
         yield node
-    finally:
-        if node is not None:
-            node.close()
-        rclpy.try_shutdown(context=context)
 
 
 def _parts(planner: PlannerNode) -> Dict[str, Any]:

@@ -28,7 +28,7 @@ are those of every release in that range.
 import re
 from typing import Dict
 
-from helpers.interface_packages import assert_build_is_current, compiled_type_hash, prefix_of
+from helpers.interface_packages import assert_build_is_current, hash_differences
 import pytest
 from rclpy.qos import qos_check_compatible, QoSCompatibility
 
@@ -65,10 +65,7 @@ PX4_V1_16_TYPE_HASHES: Dict[str, str] = {
 
 
 def test_built_message_hashes_equal_px4_v1_16():
-    prefix = prefix_of(px4_msgs)
-    found = {name: compiled_type_hash(name, prefix) for name in PX4_V1_16_TYPE_HASHES}
-    wrong = {name: (found[name], PX4_V1_16_TYPE_HASHES[name]) for name in found
-             if found[name] != PX4_V1_16_TYPE_HASHES[name]}
+    wrong = hash_differences(px4_msgs, PX4_V1_16_TYPE_HASHES)
     assert not wrong, f'type hashes differ from PX4 v1.16 (built, expected): {wrong}'
 
 

@@ -41,21 +41,18 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from helpers.map_files import BLOCK, bt, EMPTY, las, MapFile, NON_FINITE, npy, pcd, ply, UTM
 import numpy as np
 import pytest
-import rclpy
 from rclpy.parameter import Parameter
-from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import PointCloud2
 from std_msgs.msg import Header
 from visualization_msgs.msg import Marker, MarkerArray
 
-from ros_harness import (assert_clean_exit, LATCHED_QOS, marker, marker_array, min_clearance,
-                         odom_msg, PlannerClient, pose_msg, RosClient, RUN_NAMESPACE,
-                         start_planner, unique_domain_id)
+from ros_harness import (assert_clean_exit, in_process_planner, LATCHED_QOS, marker,
+                         marker_array, min_clearance, odom_msg, PlannerClient, pose_msg,
+                         RosClient, RUN_NAMESPACE, start_planner, unique_domain_id)
 from uav_global_planner.core.io.scene import find_scene, load_scene
 from uav_global_planner.core.status import PlanStatus
 from uav_global_planner.ros import conversions as conv
 from uav_global_planner.ros import nav2_interfaces
-from uav_global_planner.ros.planner_node import PlannerNode
 
 pytestmark = pytest.mark.ros
 
@@ -729,12 +726,7 @@ def test_map_file_refused_at_start_up(case_id: str, tmp_path: Path) -> None:
     case = CASES[case_id]
     overrides = [Parameter(name, value=str(value.at(tmp_path)) if isinstance(value, MapFile)
                            else value) for name, value in case.send.items()]
-    context = rclpy.Context()
-    rclpy.init(context=context, domain_id=unique_domain_id(),
-               signal_handler_options=SignalHandlerOptions.NO)
-    node = None
-    try:
-        node = PlannerNode(context=context, parameter_overrides=overrides)
+    with in_process_planner(overrides) as node:
         published = []
         node.diagnostics.publish = (
             lambda stamp_ns, level, text, values: published.append((level, text, dict(values))))
@@ -768,10 +760,6 @@ def test_map_file_refused_at_start_up(case_id: str, tmp_path: Path) -> None:
                                            'adaptive')
         outcome = node.nav2._plan(request, None, None)
         assert outcome.status is PlanStatus.INVALID_INPUT and outcome.message == reason
-    finally:
-        if node is not None:
-            node.close()
-        rclpy.try_shutdown(context=context)
 
 
 # ------------------------------------------------------------------------------ the table itself
@@ -824,12 +812,7 @@ def test_documented_reason_of_a_case_run_elsewhere(case_id: str) -> None:
 def test_documented_reason_of_a_parameter_case_run_elsewhere() -> None:
     """The reasons in the parameter rows of test_node_planning's cases are what rclpy and the
     node say (in-process: no DDS traffic, no duplicate of that test)."""
-    context = rclpy.Context()
-    rclpy.init(context=context, domain_id=unique_domain_id(),
-               signal_handler_options=SignalHandlerOptions.NO)
-    node = None
-    try:
-        node = PlannerNode(context=context)
+    with in_process_planner() as node:
         for case in CATALOGUE:
             if case.covered_by != PLANNING_PARAMS:
                 continue
@@ -837,10 +820,6 @@ def test_documented_reason_of_a_parameter_case_run_elsewhere() -> None:
                 [Parameter(name, value=value) for name, value in case.send.items()])
             assert not result.successful, case.case_id
             assert case.reason in result.reason, (case.case_id, result.reason)
-    finally:
-        if node is not None:
-            node.close()
-        rclpy.try_shutdown(context=context)
 
 
 def test_catalogue_is_complete() -> None:

@@ -9,8 +9,8 @@ from uav_global_planner.core.errors import InvalidInputError, NoValidPathError
 from uav_global_planner.core.map.obstacles import ObstacleSet
 from uav_global_planner.core.path.motion_limits import GRAVITY, MotionLimits
 from uav_global_planner.core.path.smoothing import smooth_path, SmoothedPath
-from uav_global_planner.core.path.timing import (_Stations, check_limits, StartMotion,
-                                                 time_parameterize)
+from uav_global_planner.core.path.timing import (_Stations, check_limits, longest_crawl,
+                                                 StartMotion, time_parameterize)
 from uav_global_planner.core.path.yaw import YAW_ACCELERATION
 
 DEFAULTS = MotionLimits()
@@ -112,6 +112,26 @@ def test_moving_starts_keep_every_limit_and_start_as_asked():
     assert checked >= 50 and kept >= checked // 2
 
 
+def assert_maxima_hold_inside(smoothed: SmoothedPath, stations: _Stations,
+                              rng: np.random.Generator) -> None:
+    """The maxima of every interval of ``stations`` (tangent components, curvature norm and
+    horizontal part, curvature rate) bound the curve's own values at four random points
+    inside it."""
+    s = stations.s
+    th, tz = stations.tangent.T
+    for _ in range(4):
+        inside = s[:-1] + rng.uniform(0.0, 1.0, len(s) - 1) * np.diff(s)
+        _, tangent, curvature, rate = smoothed.curve.derivatives3(inside)
+        assert np.all(np.hypot(tangent[:, 0], tangent[:, 1]) <= th + 1e-9)
+        assert np.all(np.abs(tangent[:, 2]) <= tz + 1e-9)
+        assert np.all(np.linalg.norm(curvature, axis=1)
+                      <= stations.curvature_norm * (1 + 1e-9) + 1e-9)
+        assert np.all(np.hypot(curvature[:, 0], curvature[:, 1])
+                      <= stations.curvature[:, 0] * (1 + 1e-9) + 1e-9)
+        assert np.all(np.linalg.norm(rate, axis=1)
+                      <= stations.curvature_rate * (1 + 1e-9) + 1e-9)
+
+
 def test_per_interval_bounds_prove_the_limits():
     """The speed cap w and tangential bound alpha of every interval satisfy the three
     sufficient conditions of the timing module, with the interval's maxima."""
@@ -136,18 +156,7 @@ def test_per_interval_bounds_prove_the_limits():
         assert alpha.max() <= window * limits.jerk * (1 + 1e-12)
         assert np.all(zeta + bends <= limits.jerk * (1 + 1e-9))
         # The maxima bound the curve's own values at points inside each interval.
-        s = stations.s
-        for _ in range(4):
-            inside = s[:-1] + rng.uniform(0.0, 1.0, len(s) - 1) * np.diff(s)
-            _, tangent, curvature, rate = smoothed.curve.derivatives3(inside)
-            assert np.all(np.hypot(tangent[:, 0], tangent[:, 1]) <= th + 1e-9)
-            assert np.all(np.abs(tangent[:, 2]) <= tz + 1e-9)
-            assert np.all(np.linalg.norm(curvature, axis=1)
-                          <= stations.curvature_norm * (1 + 1e-9) + 1e-9)
-            assert np.all(np.hypot(curvature[:, 0], curvature[:, 1])
-                          <= kh * (1 + 1e-9) + 1e-9)
-            assert np.all(np.linalg.norm(rate, axis=1)
-                          <= stations.curvature_rate * (1 + 1e-9) + 1e-9)
+        assert_maxima_hold_inside(smoothed, stations, rng)
         checked += 1
     assert checked >= 40
 
@@ -214,18 +223,6 @@ def test_a_moving_start_is_continued_exactly(speed, accel):
     assert check_limits(timing.trajectory, limits, step_s=STEP) == []
 
 
-def longest_crawl(trajectory, below: float = 0.01, step: float = 0.01) -> float:
-    """Longest time [s] the reference moves slower than ``below`` [m/s] without having ended:
-    a crawl (a stop at a corner takes a fraction of a second)."""
-    times = np.arange(0.0, trajectory.duration_s, step)
-    slow = np.linalg.norm(trajectory.state_at(times).velocity, axis=1) < below
-    longest = run = 0
-    for flag in slow[:-1]:
-        run = run + 1 if flag else 0
-        longest = max(longest, run)
-    return longest * step
-
-
 @pytest.mark.parametrize('back, side, lead_in', [(5.0, 0.3, 8.0), (6.0, 0.5, 10.0),
                                                  (8.0, 0.1, 12.0)])
 def test_a_curve_that_turns_back_passes_its_near_cusp_without_crawling(back, side, lead_in):
@@ -251,20 +248,7 @@ def test_a_curve_that_turns_back_passes_its_near_cusp_without_crawling(back, sid
     assert np.nanmax(np.linalg.norm(curvature, axis=1)) > 1e3
     assert len(stations.s) > len(smoothed.arc_length)
     # The bounds of the cut stations hold inside each of their intervals.
-    rng = np.random.default_rng(7)
-    s = stations.s
-    th, tz = stations.tangent.T
-    for _ in range(4):
-        inside = s[:-1] + rng.uniform(0.0, 1.0, len(s) - 1) * np.diff(s)
-        _, tangent, curvature, rate = smoothed.curve.derivatives3(inside)
-        assert np.all(np.hypot(tangent[:, 0], tangent[:, 1]) <= th + 1e-9)
-        assert np.all(np.abs(tangent[:, 2]) <= tz + 1e-9)
-        assert np.all(np.linalg.norm(curvature, axis=1)
-                      <= stations.curvature_norm * (1 + 1e-9) + 1e-9)
-        assert np.all(np.hypot(curvature[:, 0], curvature[:, 1])
-                      <= stations.curvature[:, 0] * (1 + 1e-9) + 1e-9)
-        assert np.all(np.linalg.norm(rate, axis=1)
-                      <= stations.curvature_rate * (1 + 1e-9) + 1e-9)
+    assert_maxima_hold_inside(smoothed, stations, np.random.default_rng(7))
 
 
 def test_a_start_too_fast_to_stop_is_slowed_and_says_so():

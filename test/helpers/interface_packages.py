@@ -11,6 +11,7 @@ import ctypes
 from pathlib import Path
 import subprocess
 import sys
+from typing import Dict, Mapping, Tuple
 
 import pytest
 
@@ -45,6 +46,22 @@ def compiled_type_hash(type_name: str, prefix: Path) -> str:
     function.argtypes = [ctypes.c_void_p]
     found = function(None).contents
     return f'RIHS{found.version:02d}_' + bytes(found.value).hex()
+
+
+def hash_differences(module, expected: Mapping[str, str]) -> Dict[str, Tuple[str, str]]:
+    """The types of ``expected`` whose compiled hash differs, as ``{name: (built, expected)}``.
+
+    Parameters
+    ----------
+    module : module
+        The ROS Python package of the types (its install prefix holds their C type support).
+    expected : mapping of str to str
+        Type name to its expected RIHS01 hash.
+    """
+    prefix = prefix_of(module)
+    found = {name: compiled_type_hash(name, prefix) for name in expected}
+    return {name: (found[name], expected[name]) for name in found
+            if found[name] != expected[name]}
 
 
 def assert_build_is_current(package: str) -> None:

@@ -270,6 +270,18 @@ def mark_box(block: np.ndarray, base: np.ndarray, bins: CellBins, items: np.ndar
                          float(max_work)))
 
 
+@njit(inline='always')
+def _box_cell(cells, n, lo, halo, sa, sb, sc):  # pragma: no cover - compiled
+    """Flat index ``(a sb + b) sc + c`` of point ``n``'s cell in the box with its halo, or -1
+    when the cell lies outside (inlined into :func:`_mark_box` by numba)."""
+    a = cells[n, 0] - lo[0] + halo
+    b = cells[n, 1] - lo[1] + halo
+    c = cells[n, 2] - lo[2] + halo
+    if 0 <= a < sa and 0 <= b < sb and 0 <= c < sc:
+        return (a * sb + b) * sc + c
+    return -1
+
+
 @njit
 def _mark_box(block, base, lo, hi, points, cells, items, halo, origin, delta, gamma, inner2,
               outer2, offsets, first_at, max_work):  # pragma: no cover - compiled
@@ -283,23 +295,17 @@ def _mark_box(block, base, lo, hi, points, cells, items, halo, origin, delta, ga
     # local[start[f]:start[f + 1]].
     start = np.zeros(sa * sb * sc + 1, dtype=np.int32)
     for m in range(items.shape[0]):
-        n = items[m]
-        a = cells[n, 0] - lo[0] + halo
-        b = cells[n, 1] - lo[1] + halo
-        c = cells[n, 2] - lo[2] + halo
-        if 0 <= a < sa and 0 <= b < sb and 0 <= c < sc:
-            start[(a * sb + b) * sc + c + 1] += 1
+        f = _box_cell(cells, items[m], lo, halo, sa, sb, sc)
+        if f >= 0:
+            start[f + 1] += 1
     for f in range(sa * sb * sc):
         start[f + 1] += start[f]
     fill = start[:-1].copy()
     local = np.empty((start[sa * sb * sc], 3))
     for m in range(items.shape[0]):
         n = items[m]
-        a = cells[n, 0] - lo[0] + halo
-        b = cells[n, 1] - lo[1] + halo
-        c = cells[n, 2] - lo[2] + halo
-        if 0 <= a < sa and 0 <= b < sb and 0 <= c < sc:
-            f = (a * sb + b) * sc + c
+        f = _box_cell(cells, n, lo, halo, sa, sb, sc)
+        if f >= 0:
             local[fill[f], 0] = points[n, 0]
             local[fill[f], 1] = points[n, 1]
             local[fill[f], 2] = points[n, 2]

@@ -183,6 +183,28 @@ def _gap(kind, prm, verts, vstart, s, x, y, z):  # pragma: no cover - compiled
     return _finish(kind, prm, s, _column_part(kind, prm, verts, vstart, s, x, y), z)
 
 
+@njit(inline='always')
+def _gap_inline(kind, prm, verts, vstart, s, x, y, z):  # pragma: no cover - compiled
+    """:func:`_gap`, with spheres and boxes worked out in place.
+
+    Inlined into the loops by numba (``inline='always'``); spheres and boxes use the very
+    operations of :func:`_column_part` and :func:`_finish` (same bits), since a call of
+    :func:`_gap` per shape, passing the whole table, costs several times their arithmetic.
+    """
+    code = kind[s]
+    if code == SPHERE:
+        dx = x - prm[s, 0]
+        dy = y - prm[s, 1]
+        dz = z - prm[s, 2]
+        return math.sqrt((dx * dx + dy * dy) + dz * dz) - prm[s, 3]
+    if code == BOX:
+        ex = max(max(prm[s, 0] - x, x - prm[s, 3]), 0.0)
+        ey = max(max(prm[s, 1] - y, y - prm[s, 4]), 0.0)
+        ez = max(max(prm[s, 2] - z, z - prm[s, 5]), 0.0)
+        return math.sqrt((ex * ex + ey * ey) + ez * ez)
+    return _gap(kind, prm, verts, vstart, s, x, y, z)
+
+
 @njit
 def _min_gap_all(points, kind, prm, verts, vstart, out):  # pragma: no cover - compiled
     for n in range(points.shape[0]):
@@ -191,20 +213,7 @@ def _min_gap_all(points, kind, prm, verts, vstart, out):  # pragma: no cover - c
         y = points[n, 1]
         z = points[n, 2]
         for s in range(kind.shape[0]):
-            code = kind[s]
-            # Spheres and boxes in place (see _min_gap_indexed).
-            if code == SPHERE:
-                dx = x - prm[s, 0]
-                dy = y - prm[s, 1]
-                dz = z - prm[s, 2]
-                gap = math.sqrt((dx * dx + dy * dy) + dz * dz) - prm[s, 3]
-            elif code == BOX:
-                ex = max(max(prm[s, 0] - x, x - prm[s, 3]), 0.0)
-                ey = max(max(prm[s, 1] - y, y - prm[s, 4]), 0.0)
-                ez = max(max(prm[s, 2] - z, z - prm[s, 5]), 0.0)
-                gap = math.sqrt((ex * ex + ey * ey) + ez * ez)
-            else:
-                gap = _gap(kind, prm, verts, vstart, s, x, y, z)
+            gap = _gap_inline(kind, prm, verts, vstart, s, x, y, z)
             if gap < best:
                 best = gap
         out[n] = max(best, 0.0)
@@ -230,23 +239,7 @@ def _min_gap_indexed(points, kind, prm, verts, vstart, always, origin, cell, dim
         if 0.0 <= fi < nx and 0.0 <= fj < ny and 0.0 <= fk < nz:
             c = (int(fi) * ny + int(fj)) * nz + int(fk)
             for e in range(start[c], start[c + 1]):
-                s = items[e]
-                code = kind[s]
-                # Spheres and boxes are worked out here, with the very operations of
-                # _column_part and _finish (same bits): a call of _gap per shape, passing the
-                # whole table, costs several times their arithmetic.
-                if code == SPHERE:
-                    dx = x - prm[s, 0]
-                    dy = y - prm[s, 1]
-                    dz = z - prm[s, 2]
-                    gap = math.sqrt((dx * dx + dy * dy) + dz * dz) - prm[s, 3]
-                elif code == BOX:
-                    ex = max(max(prm[s, 0] - x, x - prm[s, 3]), 0.0)
-                    ey = max(max(prm[s, 1] - y, y - prm[s, 4]), 0.0)
-                    ez = max(max(prm[s, 2] - z, z - prm[s, 5]), 0.0)
-                    gap = math.sqrt((ex * ex + ey * ey) + ez * ez)
-                else:
-                    gap = _gap(kind, prm, verts, vstart, s, x, y, z)
+                gap = _gap_inline(kind, prm, verts, vstart, items[e], x, y, z)
                 if gap < best:
                     best = gap
         out[n] = max(best, 0.0)

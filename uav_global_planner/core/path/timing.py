@@ -586,5 +586,20 @@ def check_limits(trajectory: Trajectory, limits: MotionLimits, step_s: float = 0
     return problems
 
 
+def longest_crawl(trajectory: Trajectory, below: float = 0.01, step_s: float = 0.01) -> float:
+    """Longest time [s] the reference moves slower than ``below`` [m/s] before its end.
+
+    A crawl: the speed is sampled every ``step_s`` [s] from the start; the last sample (the
+    stop at the end) is left out. A stop at a corner takes a fraction of a second.
+    """
+    times = np.arange(0.0, trajectory.duration_s, step_s)
+    slow = np.linalg.norm(trajectory.state_at(times).velocity, axis=1) < below
+    longest = run = 0
+    for flag in slow[:-1]:
+        run = run + 1 if flag else 0
+        longest = max(longest, run)
+    return longest * step_s
+
+
 __all__ = ['MIN_ALPHA_SHARE', 'StartMotion', 'TimingResult',
-           'time_parameterize', 'check_limits', 'YawProfile']
+           'time_parameterize', 'check_limits', 'longest_crawl', 'YawProfile']
