@@ -12,7 +12,7 @@ from dataclasses import replace
 import json
 import math
 import sys
-from typing import Any, Optional, Tuple
+from typing import Any, Callable, Optional, Tuple
 
 import numpy as np
 
@@ -57,31 +57,47 @@ def run_command(args: argparse.Namespace) -> int:
         The exit code: 0 success, 1 planning failure, 2 invalid input (printed on stderr, or
         as one JSON object by ``plan --json``).
     """
-    announce_compiling()
+    compiled_before = jit.compile_seconds()
+    withdraw = announce_compiling()
     try:
         return _run_scene_command(args)
     finally:
-        report_compiled()
+        withdraw()
+        report_compiled(jit.compile_seconds() - compiled_before)
 
 
-def announce_compiling() -> None:
-    """Say on stderr, once, when this process starts compiling kernels (a first run)."""
-    jit.on_first_compile(lambda: print(
+def announce_compiling() -> Callable[[], None]:
+    """Say on stderr, once, when this command starts compiling kernels (a first run); returns
+    what withdraws the announcement once the command is over."""
+    return jit.on_next_compile(lambda: print(
         "planning: compiling the planner's kernels once, cached in "
         f'{jit.cache_dir()} (uav-plan warmup does it ahead of a first plan)',
         file=sys.stderr, flush=True))
 
 
-def report_compiled() -> None:
-    """Say on stderr how long this process compiled kernels, if it did."""
-    seconds = jit.compile_seconds()
+def report_compiled(seconds: float) -> None:
+    """Say on stderr how long this command compiled kernels [s], if it did."""
     if seconds > 0.0:
         print(f"planning: compiled the planner's kernels once ({seconds:.1f} s), cached in "
               f'{jit.cache_dir()}', file=sys.stderr, flush=True)
 
 
+def _check_command_options(args: argparse.Namespace) -> None:
+    """Refuse a command's own options before the scene is read or a kernel compiled."""
+    if args.command == 'compare':
+        if args.repeats < 1:
+            raise InvalidInputError(f'--repeats must be >= 1, got {args.repeats}')
+        check_image_file('--plot', args.plot)
+    elif args.command == 'plot':
+        if not args.output and not args.html and not args.profile:
+            raise InvalidInputError('plot needs -o PNG, --html FILE, --profile PNG or more')
+        check_image_file('-o', args.output)
+        check_image_file('--profile', args.profile)
+
+
 def _run_scene_command(args: argparse.Namespace) -> int:
     try:
+        _check_command_options(args)
         scene = _scene_from_args(args)
         # The ground and its AGL band for the final planning margin (a map raises gamma).
         scene = with_ground(scene, scene.terrain)
@@ -225,9 +241,6 @@ def _run_plan(args: argparse.Namespace, scene: Scene) -> int:
 
 
 def _run_compare(args: argparse.Namespace, scene: Scene) -> int:
-    if args.repeats < 1:
-        raise InvalidInputError(f'--repeats must be >= 1, got {args.repeats}')
-    check_image_file('--plot', args.plot)
     from uav_global_planner.cli.compare import compare_algorithms
     rows = compare_algorithms(scene, repeats=args.repeats)
     if len(scene.airspace):
@@ -283,10 +296,6 @@ def _run_compare(args: argparse.Namespace, scene: Scene) -> int:
 
 def _run_plot(args: argparse.Namespace, scene: Scene) -> int:
     from uav_global_planner.cli.plotting import plot_scene_html, plot_scene_paths
-    if not args.output and not args.html and not args.profile:
-        raise InvalidInputError('plot needs -o PNG, --html FILE, --profile PNG or more')
-    check_image_file('-o', args.output)
-    check_image_file('--profile', args.profile)
     budget = PlanBudget(scene.config.max_planning_time, progress=_progress_to_stderr)
     planner, ready = _warm_planner(scene, budget)
     result, admissions = _plan_admitted(planner, scene, args.algorithm, ready, budget=budget)

@@ -14,7 +14,7 @@ folder of the user: ``$XDG_CACHE_HOME/uav_global_planner/numba`` (``~/.cache/...
 ``XDG_CACHE_HOME``); :func:`cache_dir` names it. Processes started from this one inherit it.
 
 :func:`compile_seconds` tells how long this process has spent compiling, so a time budget can
-leave that one-off cost out; :func:`on_first_compile` lets a program say why its first run
+leave that one-off cost out; :func:`on_next_compile` lets a program say why its first run
 waits; :func:`kernel_counts` tells how many kernels were compiled and how many were loaded
 from the cache.
 """
@@ -71,20 +71,17 @@ class _CompileClock:
         self._depth = 0
         self._since = 0.0
         self.total_s = 0.0
-        self.started = False
         self.callbacks: List[Callable[[], None]] = []
 
     def on_start(self, event: Any) -> None:
-        first = False
+        waiting: List[Callable[[], None]] = []
         with self._lock:
             if self._depth == 0:
                 self._since = time.perf_counter()
-                first = not self.started
-                self.started = True
+                waiting, self.callbacks = self.callbacks, []
             self._depth += 1
-        if first:
-            for callback in list(self.callbacks):
-                callback()
+        for callback in waiting:
+            callback()
 
     def on_end(self, event: Any) -> None:
         with self._lock:
@@ -151,16 +148,24 @@ def _time_cache_loads(dispatcher: Any) -> None:
     cache.load_overload = timed_load
 
 
-def on_first_compile(callback: Callable[[], None]) -> None:
-    """Call ``callback()`` when this process starts its first compilation (at once if it
-    already has); never for kernels loaded from the cache. The callback runs on the
-    compiling thread and must not raise."""
+def on_next_compile(callback: Callable[[], None]) -> Callable[[], None]:
+    """Call ``callback()`` once, when this process next starts compiling a kernel; never for
+    kernels loaded from the cache. The callback runs on the compiling thread and must not
+    raise.
+
+    Returns
+    -------
+    callable
+        Withdraws the callback if it has not run yet (a command that compiled nothing).
+    """
     with _CLOCK._lock:
-        started = _CLOCK.started
-        if not started:
-            _CLOCK.callbacks.append(callback)
-    if started:
-        callback()
+        _CLOCK.callbacks.append(callback)
+
+    def withdraw() -> None:
+        with _CLOCK._lock:
+            if callback in _CLOCK.callbacks:
+                _CLOCK.callbacks.remove(callback)
+    return withdraw
 
 
 def cache_dir() -> Optional[str]:
