@@ -22,8 +22,8 @@ import yaml
 
 from uav_global_planner.core.config import PlannerConfig
 from uav_global_planner.core.errors import InvalidInputError
-from uav_global_planner.core.map.grid import DEFAULT_MAX_VOXELS
 from uav_global_planner.core.io.scene import parse_scene
+from uav_global_planner.core.map.grid import DEFAULT_MAX_VOXELS
 from uav_global_planner_tools import outdoor_scenes
 
 ROOT = Path(__file__).resolve().parents[1]
