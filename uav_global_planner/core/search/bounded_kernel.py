@@ -67,6 +67,8 @@ STEP = np.sqrt(np.abs(DIRECTIONS).sum(axis=1).astype(np.float64))
 @njit
 def octile(di, dj, dk):
     """Obstacle-free 26-connected distance [cells] for absolute index differences."""
+    # Sort so that d1 >= d2 >= d3: move diagonally in 3D d3 times, in 2D d2 - d3 times and
+    # straight d1 - d2 times.
     d1, d2, d3 = di, dj, dk
     if d1 < d2:
         d1, d2 = d2, d1
@@ -92,9 +94,30 @@ def is_free(flat, table, pool, bricks, node, i, j, k):  # pragma: no cover - com
     return not pool[code, local]
 
 
+@njit(inline='always')
+def neighbour_of(i, j, k, d, directions, nx, ny, nz):  # pragma: no cover - compiled
+    """``(ni, nj, nk, node)``: the indices of the neighbour of node (i, j, k) along direction
+    ``d`` (a row of ``directions``) of an ``nx x ny x nz`` grid and its flat number, -1 when it
+    lies outside the grid. Inlined in the kernels (no call)."""
+    ni = i + directions[d, 0]
+    nj = j + directions[d, 1]
+    nk = k + directions[d, 2]
+    if ni < 0 or ni >= nx or nj < 0 or nj >= ny or nk < 0 or nk >= nz:
+        return ni, nj, nk, -1
+    return ni, nj, nk, (ni * ny + nj) * nz + nk
+
+
 @njit
 def _before(f_a, h_a, f_b, h_b):
     return f_a < f_b or (f_a == f_b and h_a < h_b)
+
+
+@njit(inline='always')
+def _put(heap_f, heap_h, heap_n, pos, f, h, node):  # pragma: no cover - compiled
+    """Write the entry of key (f, h) for ``node`` at heap slot ``pos`` (inlined, no call)."""
+    heap_f[pos] = f
+    heap_h[pos] = h
+    heap_n[pos] = node
 
 
 @njit
@@ -104,13 +127,9 @@ def push(heap_f, heap_h, heap_n, size, f, h, node):  # pragma: no cover - compil
         up = (pos - 1) >> 1
         if not _before(f, h, heap_f[up], heap_h[up]):
             break
-        heap_f[pos] = heap_f[up]
-        heap_h[pos] = heap_h[up]
-        heap_n[pos] = heap_n[up]
+        _put(heap_f, heap_h, heap_n, pos, heap_f[up], heap_h[up], heap_n[up])
         pos = up
-    heap_f[pos] = f
-    heap_h[pos] = h
-    heap_n[pos] = node
+    _put(heap_f, heap_h, heap_n, pos, f, h, node)
 
 
 @njit
@@ -130,13 +149,9 @@ def pop(heap_f, heap_h, heap_n, size):  # pragma: no cover - compiled
             child += 1
         if not _before(heap_f[child], heap_h[child], f, h):
             break
-        heap_f[pos] = heap_f[child]
-        heap_h[pos] = heap_h[child]
-        heap_n[pos] = heap_n[child]
+        _put(heap_f, heap_h, heap_n, pos, heap_f[child], heap_h[child], heap_n[child])
         pos = child
-    heap_f[pos] = f
-    heap_h[pos] = h
-    heap_n[pos] = node
+    _put(heap_f, heap_h, heap_n, pos, f, h, node)
 
 
 @njit
@@ -200,12 +215,9 @@ def _astar(flat, table, pool, bricks, corridor, g, parent, mark, heap_f, heap_h,
         k = node % nz
         g_node = g[node]
         for d in range(26):
-            ni = i + directions[d, 0]
-            nj = j + directions[d, 1]
-            nk = k + directions[d, 2]
-            if ni < 0 or ni >= nx or nj < 0 or nj >= ny or nk < 0 or nk >= nz:
+            ni, nj, nk, neighbour = neighbour_of(i, j, k, d, directions, nx, ny, nz)
+            if neighbour < 0:
                 continue
-            neighbour = (ni * ny + nj) * nz + nk
             seen = mark[neighbour]
             if seen == is_closed:
                 continue
@@ -229,7 +241,7 @@ def _astar(flat, table, pool, bricks, corridor, g, parent, mark, heap_f, heap_h,
 
 
 @njit
-def _trace(goal, parent, directions, ny, nz, start):  # pragma: no cover - compiled
+def trace_path(goal, parent, directions, ny, nz, start):  # pragma: no cover - compiled
     """(i, j, k) of the path from ``start`` to ``goal`` following the parent directions."""
     nyz = ny * nz
     length = 1
@@ -250,10 +262,11 @@ def _trace(goal, parent, directions, ny, nz, start):  # pragma: no cover - compi
     return path
 
 
-def lazy_zeros(count: int, dtype) -> np.ndarray:
-    """Zeros whose pages are committed when first written (no huge pages)."""
+def lazy_zeros(count: int, dtype, min_bytes: int = _LAZY_BYTES) -> np.ndarray:
+    """Zeros whose pages are committed when first written (no huge pages): a memory map from
+    ``min_bytes`` [bytes] up, plain numpy zeros below."""
     nbytes = int(count) * np.dtype(dtype).itemsize
-    if nbytes < _LAZY_BYTES or not hasattr(mmap, 'MADV_NOHUGEPAGE'):
+    if nbytes < min_bytes or not hasattr(mmap, 'MADV_NOHUGEPAGE'):
         return np.zeros(count, dtype=dtype)
     region = mmap.mmap(-1, nbytes)
     region.madvise(mmap.MADV_NOHUGEPAGE)
@@ -398,4 +411,4 @@ class Phase:
 
     def path(self, goal: int) -> np.ndarray:
         """(i, j, k) of the path found to ``goal``, shape (N, 3) int64."""
-        return _trace(goal, self.parent, DIRECTIONS, self.shape[1], self.shape[2], self.start)
+        return trace_path(goal, self.parent, DIRECTIONS, self.shape[1], self.shape[2], self.start)

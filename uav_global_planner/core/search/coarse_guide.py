@@ -26,7 +26,8 @@ import numpy as np
 from uav_global_planner.core.jit import njit
 from uav_global_planner.core.map.sparse_grid import BRICK, BRICK_BITS, FREE, FULL
 from uav_global_planner.core.search.bounded_kernel import (DIRECTIONS, is_free, lazy_zeros,
-                                                           octile, pop, push, STEP)
+                                                           neighbour_of, octile, pop, push,
+                                                           STEP, trace_path)
 
 #: Largest number of cells of the coarsest level: its cell size s is the smallest power of two
 #: from 2 up that keeps it at most this large.
@@ -149,12 +150,9 @@ def _coarse_astar(flat, table, pool, bricks, nx, ny, nz, size, start, goal, allo
         cj = (cell // cz) % cy
         ck = cell % cz
         for d in range(26):
-            ni = ci + DIRECTIONS[d, 0]
-            nj = cj + DIRECTIONS[d, 1]
-            nk = ck + DIRECTIONS[d, 2]
-            if ni < 0 or ni >= cx or nj < 0 or nj >= cy or nk < 0 or nk >= cz:
+            ni, nj, nk, other = neighbour_of(ci, cj, ck, d, DIRECTIONS, cx, cy, cz)
+            if other < 0:
                 continue
-            other = (ni * cy + nj) * cz + nk
             if mark[other] == _DONE:
                 continue
             if confined and allowed[other] == 0:
@@ -180,45 +178,13 @@ def _coarse_astar(flat, table, pool, bricks, nx, ny, nz, size, start, goal, allo
             heap_size += 1
     if not found:
         return np.zeros((0, 3), dtype=np.int64)
-    length = 1
-    cell = last
-    while cell != first:
-        d = parent[cell]
-        cell -= (DIRECTIONS[d, 0] * cy + DIRECTIONS[d, 1]) * cz + DIRECTIONS[d, 2]
-        length += 1
-    path = np.empty((length, 3), dtype=np.int64)
-    cell = last
-    for slot in range(length - 1, -1, -1):
-        path[slot, 0] = cell // (cy * cz)
-        path[slot, 1] = (cell // cz) % cy
-        path[slot, 2] = cell % cz
-        if slot > 0:
-            d = parent[cell]
-            cell -= (DIRECTIONS[d, 0] * cy + DIRECTIONS[d, 1]) * cz + DIRECTIONS[d, 2]
-    return path
+    return trace_path(last, parent, DIRECTIONS, cy, cz, first)
 
 
 @njit
-def _stamp_cells(corridor, cells, nx, ny, nz, size, reach, stamp):  # pragma: no cover
-    """Write ``stamp`` at the fine nodes of every cell within ``reach`` cells of a path cell."""
-    for p in range(cells.shape[0]):
-        i0 = max((cells[p, 0] - reach) * size, 0)
-        i1 = min((cells[p, 0] + reach + 1) * size, nx)
-        j0 = max((cells[p, 1] - reach) * size, 0)
-        j1 = min((cells[p, 1] + reach + 1) * size, ny)
-        k0 = max((cells[p, 2] - reach) * size, 0)
-        k1 = min((cells[p, 2] + reach + 1) * size, nz)
-        for i in range(i0, i1):
-            for j in range(j0, j1):
-                base = (i * ny + j) * nz
-                for k in range(k0, k1):
-                    corridor[base + k] = stamp
-
-
-@njit
-def _allow_below(allowed, cells, ratio, reach, fx, fy, fz):  # pragma: no cover - compiled
-    """Mark in ``allowed`` (cells of the level ``ratio`` times finer, ``fx, fy, fz`` per axis)
-    the cells under every cell within ``reach`` cells of a path cell of the coarser level."""
+def _mark_around(out, cells, ratio, reach, fx, fy, fz, value):  # pragma: no cover - compiled
+    """Write ``value`` in ``out`` (cells ``ratio`` times finer than ``cells``, ``fx, fy, fz``
+    per axis) under every cell within ``reach`` cells (Chebyshev) of a path cell."""
     for p in range(cells.shape[0]):
         i0 = max((cells[p, 0] - reach) * ratio, 0)
         i1 = min((cells[p, 0] + reach + 1) * ratio, fx)
@@ -230,7 +196,7 @@ def _allow_below(allowed, cells, ratio, reach, fx, fy, fz):  # pragma: no cover 
             for j in range(j0, j1):
                 base = (i * fy + j) * fz
                 for k in range(k0, k1):
-                    allowed[base + k] = 1
+                    out[base + k] = value
 
 
 def levels(shape: Tuple[int, int, int]) -> List[int]:
@@ -276,8 +242,8 @@ def coarse_corridor(masks, shape: Tuple[int, int, int], start: int, goal: int,
         if number + 1 < len(chain):
             finer = _cells(shape, chain[number + 1])
             allowed = lazy_zeros(int(np.prod(finer)), np.uint8)
-            _allow_below(allowed, path, size // chain[number + 1], int(reach), *finer)
+            _mark_around(allowed, path, size // chain[number + 1], int(reach), *finer, 1)
     if len(path) == 0:
         return 0
-    _stamp_cells(corridor, path, nx, ny, nz, last, int(reach), stamp)
+    _mark_around(corridor, path, last, int(reach), nx, ny, nz, stamp)
     return int(len(path))

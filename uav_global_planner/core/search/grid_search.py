@@ -100,25 +100,27 @@ checked in Python between chunks (numba code cannot read the clock).
 
 One module, though long (about 1000 lines): the compiled kernel, its heap, the heuristics and
 the workspaces that hold its arrays for both grid layouts are compiled and tuned together;
-Dial's kernel and its bucket queue are the modules ``dial`` and ``queues``.
+Dial's kernel, its bucket queue and the neighbour loop both kernels share are the module
+``dial``.
 """
 
 from dataclasses import dataclass
 import math
-import mmap
 import threading
 import time
 from typing import Callable, Dict, List, Optional, Tuple, Union
 
 import numpy as np
 
+from uav_global_planner.core.checks import check_non_negative, check_positive
 from uav_global_planner.core.errors import (GoalOccupiedError, InvalidInputError, NoValidPathError,
                                             PlanningError, PlanningTimeoutError,
                                             StartOccupiedError)
 from uav_global_planner.core.jit import njit
 from uav_global_planner.core.map.sparse_grid import (BRICK, BRICK_BITS, BRICK_NODES, FULL,
                                                      SparseMask)
-from uav_global_planner.core.search import dial, queues
+from uav_global_planner.core.search import dial
+from uav_global_planner.core.search.bounded_kernel import lazy_zeros, octile as _octile_cells
 from uav_global_planner.core.settings import check_setting
 
 _H_ZERO = 0
@@ -270,21 +272,6 @@ class SearchResult:
 
 
 @njit
-def _octile_cells(di, dj, dk):
-    """Obstacle-free 26-connected distance [cells] for absolute index differences."""
-    # Sort so that d1 >= d2 >= d3: move diagonally in 3D d3 times, in 2D d2 - d3 times and
-    # straight d1 - d2 times.
-    d1, d2, d3 = di, dj, dk
-    if d1 < d2:
-        d1, d2 = d2, d1
-    if d2 < d3:
-        d2, d3 = d3, d2
-    if d1 < d2:
-        d1, d2 = d2, d1
-    return _SQRT3 * d3 + _SQRT2 * (d2 - d3) + (d1 - d2)
-
-
-@njit
 def _energy_octile(di, dj, dk, omega_up, omega_down):
     """Lower bound of the energy-aware cost [cells] (module notes): ``di, dj`` absolute,
     ``dk`` signed (goal minus node, > 0: the goal is above)."""
@@ -420,11 +407,11 @@ def _expand(blocked, mask_table, mask_pool, bricks, slots, node_g, node_int, par
 
     Two record layouts share this loop; numba compiles one version of it for each, the tests
     of ``heap_rec is not None`` resolved at compile time. Dense: ``blocked`` is the flat mask,
-    a node's record number is its node number, ``heap_rec`` is None and the brick arguments
-    are unused. Block-sparse (``blocked`` empty): the mask is ``mask_table`` and ``mask_pool``
-    and the records live in bricks of 8 x 8 x 8 nodes; a brick of records gets a slot
-    (``slots[brick]``, in the order first reached) when the search first reaches one of its
-    nodes; ``brick_step`` holds the record offset of each direction inside a brick.
+    a node's record number is its node number, ``heap_rec`` and ``slots`` are None and the
+    brick arguments are unused. Block-sparse (``blocked`` empty): the mask is ``mask_table``
+    and ``mask_pool`` and the records live in bricks of 8 x 8 x 8 nodes; a brick of records
+    gets a slot (``slots[brick]``, in the order first reached) when the search first reaches
+    one of its nodes; ``brick_step`` holds the record offset of each direction inside a brick.
 
     Returns ``_FOUND`` when the goal was closed, ``_EXHAUSTED`` when the open list is empty,
     ``_PAUSED`` when ``max_pops`` ran out and, block-sparse only, ``_GROW``, without expanding,
@@ -433,7 +420,7 @@ def _expand(blocked, mask_table, mask_pool, bricks, slots, node_g, node_int, par
     resumed. Node records are only meaningful when their stamp equals the current generation;
     a heap position of -1 marks a closed node.
 
-    ``unknown_step`` (26 values, or empty for none) is half the extra cost of each step per end
+    ``unknown_step`` (26 values, or None for none) is half the extra cost of each step per end
     node in unknown space (module notes); the mask is ``unknown`` (dense, flat) or
     ``unknown_table`` and ``unknown_pool`` (block-sparse, the bricks of ``bricks``).
     """
@@ -459,7 +446,8 @@ def _expand(blocked, mask_table, mask_pool, bricks, slots, node_g, node_int, par
     by = bricks[1]
     bz = bricks[2]
     nyz = ny * nz
-    charged = unknown_step.shape[0] > 0
+    # Compiled without the unknown-space charges when there are none (``unknown_step`` None).
+    charged = unknown_step is not None
     pops = 0
     status = _PAUSED
     while True:
@@ -622,8 +610,8 @@ class SearchWorkspace:
     more. Memory then follows what the searches touch (about 8.7 kB per brick reached), not
     the grid's volume, and a first query commits only the pages it writes.
 
-    Dial's kernel (``dijkstra``) keeps its open list apart (28 bytes a pooled entry, 24 in its
-    heap; about the frontier of a search, not the grid), doubling when a search needs more.
+    Dial's kernel (``dijkstra``) keeps its open list apart (16 bytes an entry, in chunks of
+    1024; about the frontier of a search, not the grid), doubling when a search needs more.
 
     Searches on one workspace are serialised by a lock; use one workspace per thread to search
     in parallel.
@@ -660,9 +648,9 @@ class SearchWorkspace:
         self._sparse = False
         # Record number of each heap entry (block-sparse layout; None on the dense one).
         self._heap_rec: Optional[np.ndarray] = None
-        # The open list of Dial's kernel (queues module); it grows as a search needs.
-        (self._q_heap_key, self._q_heap_int, self._q_pool_key, self._q_pool_int,
-         self._q_heads, self._qstate) = queues.new_arrays(queues.FIRST_CAPACITY, _DIAL_RING)
+        # The open list of Dial's kernel (dial module); it grows as a search needs.
+        (self._q_node, self._q_rec, self._q_meta, self._q_ends, self._q_order,
+         self._qstate) = dial.new_queue(dial.FIRST_CHUNKS, _DIAL_RING)
         self._use(self._blocked)
 
     def _use(self, blocked: Union[np.ndarray, SparseMask]) -> None:
@@ -716,8 +704,7 @@ class SearchWorkspace:
         arrays: List[np.ndarray] = [self._node_g, self._parent, self._heap_node, self._heap_key]
         if self._heap_rec is not None:
             arrays += [self._heap_rec, self._slots]
-        arrays += [self._q_heap_key, self._q_heap_int, self._q_pool_key, self._q_pool_int,
-                   self._q_heads]
+        arrays += [self._q_node, self._q_rec, self._q_meta, self._q_ends, self._q_order]
         return int(sum(a.nbytes for a in arrays))
 
     def _kernel_masks(self) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -733,8 +720,9 @@ class SearchWorkspace:
             return self._blocked[tuple(self._unravel(node))]
         return bool(self._flat_blocked[node])  # type: ignore[index]
 
-    def _grow(self) -> None:
-        """Double the record pool and / or the heap of a block-sparse search."""
+    def _grow(self, dial_queue: bool = False) -> None:
+        """Double the record pool and / or the heap of a block-sparse search, and the chunks
+        of Dial's queue when ``dial_queue`` (its kernel runs) and it might run short."""
         used = int(self._state[_S_USED])
         if (used + 8) * BRICK_NODES > len(self._parent):
             bricks = 2 * len(self._parent) // BRICK_NODES
@@ -754,11 +742,9 @@ class SearchWorkspace:
             heap_key = np.zeros(2 * entries, dtype=np.float64)
             heap_key[:2 * size] = self._heap_key[:2 * size]
             self._heap_node, self._heap_rec, self._heap_key = heap_node, heap_rec, heap_key
-        qstate = self._qstate
-        if int(qstate[queues.Q_SIZE] + qstate[queues.Q_RING]) + 52 > len(self._q_heap_int) // 2:
-            grown = queues.grown(self._q_heap_key, self._q_heap_int, self._q_pool_key,
-                                 self._q_pool_int, qstate)
-            self._q_heap_key, self._q_heap_int, self._q_pool_key, self._q_pool_int = grown
+        if dial_queue and self._qstate[dial.Q_AVAIL] < 27:
+            (self._q_node, self._q_rec, self._q_meta, self._q_order) = dial.grown(
+                self._q_node, self._q_rec, self._q_meta, self._q_order, self._qstate)
 
     def set_blocked(self, blocked: Union[np.ndarray, SparseMask]) -> None:
         """Search another occupancy grid of the same shape, keeping the allocated memory.
@@ -848,8 +834,8 @@ class SearchWorkspace:
                 f'algorithm must be one of {", ".join(ALGORITHM_CODES)}, got {algorithm!r}')
         start = self._node(start_index, 'start_index')
         goal = self._node(goal_index, 'goal_index')
-        delta_m = _checked_float('resolution', resolution, positive=True)
-        budget_s = _checked_float('max_time_s', max_time_s, positive=False)
+        delta_m = check_positive('resolution', resolution, 'm', convert=False)
+        budget_s = check_non_negative('max_time_s', max_time_s, 's', convert=False)
         # The settings are checked by their table entries (core/settings.py).
         eta = check_setting('adaptive_threshold', adaptive_threshold)
         budget_n = check_setting('max_expansions', max_expansions)
@@ -880,18 +866,21 @@ class SearchWorkspace:
                 if inv_width > 0.0:
                     status = dial.expand(
                         flat, table, pool, self._bricks, self._slots if self._sparse else None,
-                        self._node_g, self._node_int, self._parent, self._q_heap_key,
-                        self._q_heap_int, self._q_pool_key, self._q_pool_int, self._q_heads,
-                        self._qstate, _DIRECTIONS, _BRICK_STEP, self._delta, step_cost, u_flat,
-                        u_table, u_pool, u_step, state, inv_width, pops)
+                        self._node_g, self._node_int, self._parent, self._q_node,
+                        self._q_rec, self._q_meta, self._q_ends, self._q_order, self._qstate,
+                        _DIRECTIONS,
+                        _BRICK_STEP, self._delta, step_cost, u_flat, u_table, u_pool,
+                        u_step if len(u_step) else None, state, inv_width, pops)
                 else:
-                    status = _expand(flat, table, pool, self._bricks, self._slots,
+                    status = _expand(flat, table, pool, self._bricks,
+                                     self._slots if self._sparse else None,
                                      self._node_g, self._node_int, self._parent,
                                      self._heap_node, self._heap_rec, self._heap_key,
                                      _DIRECTIONS, _BRICK_STEP, self._delta, step_cost, u_flat,
-                                     u_table, u_pool, u_step, state, self._params, pops)
+                                     u_table, u_pool, u_step if len(u_step) else None, state,
+                                     self._params, pops)
                 if status == _GROW:
-                    self._grow()
+                    self._grow(inv_width > 0.0)
                     continue
                 expanded = int(state[_S_EXPANDED])
                 if status == _FOUND:
@@ -957,15 +946,15 @@ class SearchWorkspace:
         costliest = float(step_cost.max()) + 2.0 * float(unknown_step.max(initial=0.0))
         buckets = min(math.ceil(costliest / width) + 4, _DIAL_MAX_RING)
         ring = 1 << (buckets - 1).bit_length()
-        if ring > len(self._q_heads):
-            self._q_heads = np.full(ring, -1, dtype=np.int32)
+        if 2 * ring > len(self._q_ends):
+            self._q_ends = np.full(2 * ring, -1, dtype=np.int32)
         record = start
         if self._sparse:
             _, ny, nz = self.shape
             record = int(_record(start, ny, nz, self._bricks, self._slots))
-        queues.reset(self._q_heads, self._qstate, ring, 0)
-        queues.push(self._q_heap_key, self._q_heap_int, self._q_pool_key, self._q_pool_int,
-                    self._q_heads, self._qstate, 1.0 / width, 0.0, 0.0, start, record)
+        dial.reset(self._q_ends, self._qstate, ring, len(self._q_meta) // 2)
+        dial.push_start(self._q_node, self._q_rec, self._q_meta, self._q_ends, self._qstate,
+                        start, record)
         return 1.0 / width
 
     def _begin(self, start: int, goal: int, code: int, resolution: float, eta: float,
@@ -1027,12 +1016,7 @@ def _lazy_zeros(count: int, dtype) -> np.ndarray:
     2 MiB instead of 4 KiB, and a first search on a 100 M-node grid spent seconds committing
     gigabytes it never used.
     """
-    nbytes = int(count) * np.dtype(dtype).itemsize
-    if nbytes < _LAZY_BYTES or not hasattr(mmap, 'MADV_NOHUGEPAGE'):
-        return np.zeros(count, dtype=dtype)
-    region = mmap.mmap(-1, nbytes)
-    region.madvise(mmap.MADV_NOHUGEPAGE)
-    return np.frombuffer(region, dtype=dtype, count=count)
+    return lazy_zeros(count, dtype, _LAZY_BYTES)
 
 
 def _checked_grid(blocked) -> Union[np.ndarray, SparseMask]:
@@ -1052,17 +1036,6 @@ def _checked_grid(blocked) -> Union[np.ndarray, SparseMask]:
         raise InvalidInputError(
             f'blocked has {blocked.size} nodes; the search supports at most {_MAX_NODES}')
     return np.ascontiguousarray(blocked)
-
-
-def _checked_float(name: str, value, positive: bool) -> float:
-    """``value`` as a finite float, > 0 if ``positive`` else >= 0."""
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise InvalidInputError(f'{name} must be a number, got {value!r}')
-    number = float(value)
-    if not math.isfinite(number) or number < 0.0 or (positive and number == 0.0):
-        bound = '> 0' if positive else '>= 0'
-        raise InvalidInputError(f'{name} must be a finite number {bound}, got {number}')
-    return number
 
 
 def search(blocked: Union[np.ndarray, SparseMask], start_index, goal_index, algorithm: str,

@@ -43,6 +43,7 @@ from uav_global_planner.core.map.obstacles import Obstacle, ObstacleSet
 from uav_global_planner.core.map.terrain import HeightField
 from uav_global_planner.core.path.clearance import certify_segments
 from uav_global_planner.core.result import PlanResult
+from uav_global_planner.core.settings import check_setting
 from uav_global_planner.core.status import PlanStatus
 
 __all__ = ['Admission', 'admit', 'explain', 'FREE_ROOM_CELLS', 'is_free', 'nearest_free_node',
@@ -301,7 +302,8 @@ def admit(planner: Any, point: Any, which: str = START, tolerance: Optional[floa
     which : str
         :data:`START` or :data:`GOAL`.
     tolerance : float, optional
-        [m], >= 0, 0 = never moved; ``planner.config.start_tolerance`` by default.
+        [m], in [0, 100] (the setting ``start_tolerance``), 0 = never moved;
+        ``planner.config.start_tolerance`` by default.
     flag : str
         How users raise the tolerance, for refusals: ``'--start-tolerance'`` on the command line,
         ``'the start_tolerance parameter'`` for the node.
@@ -311,6 +313,11 @@ def admit(planner: Any, point: Any, which: str = START, tolerance: Optional[floa
     Admission
         A point that is not finite, or not a triple, is returned as asked (the planner refuses
         it in its own words).
+
+    Raises
+    ------
+    InvalidInputError
+        A ``tolerance`` that is not a number in [0, 100] m.
     """
     if which not in _LEGS:
         raise ValueError(f'which must be {START!r} or {GOAL!r}, got {which!r}')
@@ -318,7 +325,8 @@ def admit(planner: Any, point: Any, which: str = START, tolerance: Optional[floa
     if asked.shape != (3,) or not np.all(np.isfinite(asked)):
         return Admission(which, asked, asked)
     config = planner.config
-    limit = float(config.start_tolerance if tolerance is None else tolerance)
+    limit = float(config.start_tolerance if tolerance is None
+                  else check_setting('start_tolerance', tolerance))
     space = _Space(planner.grid, planner.blocked, planner.obstacles,
                    float(config.planning_margin))
     if space.free(asked):
