@@ -25,18 +25,18 @@ from uav_global_planner.core.errors import InvalidInputError
 from uav_global_planner.core.io.geodesy import GeodeticOrigin, MissingDependencyError, parse_origin
 from uav_global_planner.core.io.scene import Scene
 from uav_global_planner.core.io.text_files import parse_text_file
-from uav_global_planner.core.mission import (build_mission, END_ACTIONS, FIRMWARES,
-                                             format_from_path, FORMATS, MAV_CMD_NAV_TAKEOFF,
-                                             Mission, MissionSettings, UncertifiableMissionError,
-                                             write_mission)
+from uav_global_planner.core.mission import (build_mission, format_from_path, FORMATS,
+                                             MAV_CMD_NAV_TAKEOFF, Mission, MissionSettings,
+                                             UncertifiableMissionError, write_mission)
+from uav_global_planner.core.mission.settings import MISSION_SETTINGS
 from uav_global_planner.core.planner import Planner
+from uav_global_planner.core.settings import Kind
 
 EXIT_OK = 0
 EXIT_FAILED = 1
 EXIT_INVALID_INPUT = 2
 
 _FORMAT_NAMES = {'qgc': 'QGroundControl .plan', 'wpl': 'QGC WPL 110'}
-_DEFAULTS = MissionSettings()
 
 
 SceneOptions = Callable[[argparse.ArgumentParser], None]
@@ -69,28 +69,7 @@ def add_export_command(commands: Any, add_scene_options: SceneOptions) -> None:
                         help='WGS84 latitude, longitude [deg] and altitude AMSL [m] of the map '
                         "frame's origin, e.g. --origin -33.86,151.2,10 (default: the scene's "
                         'geodetic_origin)')
-    parser.add_argument('--firmware', choices=FIRMWARES,
-                        help='autopilot: .plan firmwareType, yaw and speed items (default px4 '
-                        'for qgc, ardupilot for wpl)')
-    parser.add_argument('--acceptance-radius', type=float, default=_DEFAULTS.acceptance_radius,
-                        metavar='M', help='waypoint acceptance radius R [m] of the autopilot '
-                        '(NAV_ACC_RAD, WPNAV_RADIUS); default %(default)s')
-    parser.add_argument('--tracking-allowance', type=float,
-                        default=_DEFAULTS.tracking_allowance, metavar='M',
-                        help='clearance added to gamma for tracking errors [m]; default '
-                        '%(default)s')
-    parser.add_argument('--takeoff-height', type=float, default=_DEFAULTS.takeoff_height,
-                        metavar='M', help='take-off climb above the start [m] (lowered to the '
-                        'highest clear height); default %(default)s')
-    parser.add_argument('--min-height', type=float, metavar='M',
-                        help='lowest waypoint height above the floor [m]; default gamma + '
-                        'tracking allowance')
-    parser.add_argument('--end', choices=END_ACTIONS, default=_DEFAULTS.end,
-                        help='after the goal: loiter (hold), land, or rtl (return to launch); '
-                        'default %(default)s')
-    parser.add_argument('--rtl-altitude', type=float, default=_DEFAULTS.rtl_altitude,
-                        metavar='M', help='return altitude above home for --end rtl [m], as set '
-                        'on the autopilot (RTL_RETURN_ALT, RTL_ALT); default %(default)s')
+    _add_mission_flags(parser)
     parser.add_argument('--route-margin', type=float, metavar='M',
                         help='plan the route with this safety margin [m] (default: gamma, and '
                         'where that route is too tight for the mission, gamma + allowance + R/2); '
@@ -98,13 +77,28 @@ def add_export_command(commands: Any, add_scene_options: SceneOptions) -> None:
     parser.add_argument('--json', action='store_true', help='print one JSON object')
 
 
+def _add_mission_flags(parser: argparse.ArgumentParser) -> None:
+    """One flag per setting of :data:`MISSION_SETTINGS` that has one, in the table's words;
+    :class:`MissionSettings` checks the values. The firmware's default follows the format."""
+    for entry in MISSION_SETTINGS:
+        if entry.flag is None:
+            continue
+        kind: Dict[str, Any] = ({'choices': entry.choices} if entry.kind is Kind.CHOICE
+                                else {'type': float, 'metavar': 'M'})
+        if entry.name == 'firmware':
+            parser.add_argument(entry.flag, dest=entry.name, help=f'{entry.summary} Accepted: '
+                                f'{entry.constraints}. Default: px4 for qgc, ardupilot for wpl.',
+                                **kind)
+        else:
+            parser.add_argument(entry.flag, dest=entry.name, default=entry.default,
+                                help=entry.help_text(), **kind)
+
+
 def _settings(args: argparse.Namespace, file_format: str) -> MissionSettings:
-    firmware = args.firmware or ('ardupilot' if file_format == 'wpl' else 'px4')
-    return MissionSettings(acceptance_radius=args.acceptance_radius,
-                           tracking_allowance=args.tracking_allowance,
-                           takeoff_height=args.takeoff_height, end=args.end,
-                           rtl_altitude=args.rtl_altitude, firmware=firmware,
-                           min_height=args.min_height)
+    values = {entry.name: getattr(args, entry.name) for entry in MISSION_SETTINGS
+              if entry.flag is not None}
+    values['firmware'] = args.firmware or ('ardupilot' if file_format == 'wpl' else 'px4')
+    return MissionSettings(**values)
 
 
 def _origin(args: argparse.Namespace, scene: Scene) -> GeodeticOrigin:

@@ -12,7 +12,7 @@ from typing import Any, List, Optional, Tuple, Union
 
 import numpy as np
 
-from uav_global_planner.cli.plotting import obstacle_mesh_trace, plotly_objects
+from uav_global_planner.cli.plotting import obstacle_mesh_traces, plotly_objects
 from uav_global_planner.core.fleet import FleetResult, Flight
 from uav_global_planner.core.io.scene import Scene
 
@@ -60,6 +60,7 @@ def fleet_figure(scene: Scene, result: FleetResult, frame_step_s: float = 10.0,
     frame_step_s : float
         Time between frames [s] (made coarser when the batch would need more than 400).
     title : str, optional
+        Above the plot; default: the scene name.
 
     Returns
     -------
@@ -68,17 +69,14 @@ def fleet_figure(scene: Scene, result: FleetResult, frame_step_s: float = 10.0,
     Raises
     ------
     MissingDependencyError
-        When plotly is not installed; the message names the pip package.
+        From :func:`~uav_global_planner.cli.plotting.plotly_objects`: plotly is not installed.
     """
     go = plotly_objects('fleet view')
     flights = [o.flight for o in result.accepted if o.flight is not None]
     settings = result.settings
     radius = 0.5 * settings.horizontal_separation
     height = settings.vertical_separation
-    traces = []
-    mesh = obstacle_mesh_trace(go, scene.obstacles, opacity=0.25, name='buildings')
-    if mesh is not None:
-        traces.append(mesh)
+    traces = obstacle_mesh_traces(go, scene.obstacles, opacity=0.25, name='buildings')
     paths = []
     for flight in flights:
         _, points = flight.sample(max(1.0, flight.duration_s / 200.0))

@@ -277,8 +277,8 @@ def plotly_objects(view: str):
     return go
 
 
-def obstacle_mesh_trace(go, obstacles: ObstacleSet, **style):
-    """One grey ``Mesh3d`` trace of every sphere and box, or None when there are none.
+def obstacle_mesh_traces(go, obstacles: ObstacleSet, **style) -> list:
+    """One grey ``Mesh3d`` trace of every sphere and box in a list, empty when there are none.
 
     Parameters
     ----------
@@ -291,10 +291,10 @@ def obstacle_mesh_trace(go, obstacles: ObstacleSet, **style):
     """
     mesh = _obstacle_mesh(obstacles)
     if mesh is None:
-        return None
+        return []
     (x, y, z), (i, j, k) = mesh[0].T, mesh[1].T
-    return go.Mesh3d(x=x, y=y, z=z, i=i, j=j, k=k, color='gray', flatshading=True,
-                     hoverinfo='skip', **style)
+    return [go.Mesh3d(x=x, y=y, z=z, i=i, j=j, k=k, color='gray', flatshading=True,
+                      hoverinfo='skip', **style)]
 
 
 def scene_figure(scene: Scene, paths: Mapping[str, np.ndarray], title: Optional[str] = None):
@@ -320,11 +320,8 @@ def scene_figure(scene: Scene, paths: Mapping[str, np.ndarray], title: Optional[
         When plotly is not installed; the message names the pip package.
     """
     go = plotly_objects('interactive view')
-    traces = []
-    mesh = obstacle_mesh_trace(go, scene.obstacles, opacity=0.3, name='obstacles',
-                               showlegend=True)
-    if mesh is not None:
-        traces.append(mesh)
+    traces = obstacle_mesh_traces(go, scene.obstacles, opacity=0.3, name='obstacles',
+                                  showlegend=True)
     if len(scene.obstacles.points):
         pts = _drawn_points(scene.obstacles.points, _MAX_HTML_POINTS)
         traces.append(go.Scatter3d(x=pts[:, 0], y=pts[:, 1], z=pts[:, 2], mode='markers',

@@ -215,6 +215,47 @@ def check_point(name: str, value: Any, axes: str = 'xyz') -> np.ndarray:
     return np.asarray(value, dtype=np.float64)
 
 
+def path_refusal(value: Any, allow_empty: bool = False) -> Optional[str]:
+    """Why ``value`` is refused as a polyline of finite points [x, y, z], or None.
+
+    The reason reads ``must be an (N, 3) array of numbers [x, y, z], got shape (4,)`` or
+    ``must be finite, got [nan, 0.0, 1.0] in row 2``; no rows at all (N = 0) are refused
+    unless ``allow_empty``.
+    """
+    wanted = 'must be an (N, 3) array of numbers [x, y, z]'
+    if value is None or isinstance(value, (str, bytes)):
+        return f'{wanted}, got {value!r}'
+    try:
+        points = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        return f'{wanted}, got {type(value).__name__}'
+    if points.size == 0 and allow_empty:
+        return None
+    if points.ndim != 2 or points.shape[1] != 3 or len(points) == 0:
+        return f'{wanted}, got shape {points.shape}'
+    bad = ~np.all(np.isfinite(points), axis=1)
+    if bad.any():
+        row = int(np.argmax(bad))
+        return f'must be finite, got {points[row].tolist()} in row {row}'
+    return None
+
+
+def check_path(name: str, value: Any, allow_empty: bool = False) -> np.ndarray:
+    """``value`` as a finite float64 array of shape (N, 3), N >= 1 (N >= 0 with
+    ``allow_empty``), checked by :func:`path_refusal`.
+
+    Raises
+    ------
+    InvalidInputError
+        ``<name> must be an (N, 3) array of numbers [x, y, z], got ...`` or ``<name> must be
+        finite, got [...] in row <i>``.
+    """
+    reason = path_refusal(value, allow_empty)
+    if reason is not None:
+        raise InvalidInputError(f'{name} {reason}')
+    return np.asarray(value, dtype=np.float64).reshape(-1, 3)
+
+
 def file_refusal(path: Union[str, Path]) -> Optional[str]:
     """Why the file at ``path`` cannot be read: ``no such file``, ``it is a folder`` or
     ``permission denied``; None when it is a readable file."""

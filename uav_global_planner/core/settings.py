@@ -193,7 +193,7 @@ class Setting:
 
     def help_text(self) -> str:
         """``uav-plan --help`` text: summary, accepted values and default (``%`` escaped)."""
-        default = format_value(self.default)
+        default = 'unset' if self.default is None else format_value(self.default)
         if self.scene_key:
             default = f"the scene's value, else {default}"
         return f'{self.summary} Accepted: {self.constraints}. Default: {default}.'.replace(

@@ -24,6 +24,8 @@ from typing import Any, cast, Dict, List, Mapping, Optional, Sequence, Set, Tupl
 import numpy as np
 import yaml
 
+from uav_global_planner.core.checks import (check_non_negative, check_number, check_point,
+                                            check_positive, integer_refusal, number_refusal)
 from uav_global_planner.core.errors import InvalidInputError
 from uav_global_planner.core.fleet.separation import Envelope
 
@@ -67,6 +69,12 @@ class Mission:
         return (-int(self.priority), float(self.departure_s), self.name)
 
 
+#: The settings of :class:`FleetSettings` that must be > 0, and their units.
+_POSITIVE_SETTINGS = {'horizontal_separation': 'm', 'vertical_separation': 'm',
+                      'delay_step_s': 's', 'time_tolerance_s': 's', 'index_cell_m': 'm',
+                      'index_cell_z_m': 'm', 'index_cell_s': 's'}
+
+
 @dataclass(frozen=True)
 class FleetSettings:
     """Separation and resolution settings of a batch.
@@ -104,25 +112,15 @@ class FleetSettings:
     index_cell_s: float = 30.0
 
     def __post_init__(self) -> None:
-        positive = ('horizontal_separation', 'vertical_separation', 'delay_step_s',
-                    'time_tolerance_s', 'index_cell_m', 'index_cell_z_m', 'index_cell_s')
-        for name in positive:
-            value = getattr(self, name)
-            if not _finite(value) or not float(value) > 0.0:
-                raise InvalidInputError(f'settings.{name} must be a finite number > 0, '
-                                        f'got {value!r}')
-            object.__setattr__(self, name, float(value))
-        if not _finite(self.max_delay_s) or not float(self.max_delay_s) >= 0.0:
-            raise InvalidInputError('settings.max_delay_s must be a finite number >= 0, '
-                                    f'got {self.max_delay_s!r}')
-        object.__setattr__(self, 'max_delay_s', float(self.max_delay_s))
+        for name, unit in _POSITIVE_SETTINGS.items():
+            object.__setattr__(self, name, check_positive(f'settings.{name}', getattr(self, name),
+                                                          unit, convert=False))
+        object.__setattr__(self, 'max_delay_s', check_non_negative(
+            'settings.max_delay_s', self.max_delay_s, 's', convert=False))
         layers = _number_tuple(self.altitude_layers, 'altitude_layers')
         if any(layer == 0.0 for layer in layers):
             raise InvalidInputError('settings.altitude_layers must be nonzero offsets [m]')
-        factors = _number_tuple(self.speed_factors, 'speed_factors')
-        if any(not 0.0 < factor < 1.0 for factor in factors):
-            raise InvalidInputError('settings.speed_factors must each lie in (0, 1), '
-                                    f'got {list(factors)}')
+        factors = _number_tuple(self.speed_factors, 'speed_factors', 0.0, 1.0)
         object.__setattr__(self, 'altitude_layers', layers)
         object.__setattr__(self, 'speed_factors', factors)
 
@@ -185,24 +183,20 @@ class MissionBatch:
     bounds: Optional[Tuple[np.ndarray, np.ndarray]] = None
 
 
-def _finite(value: Any) -> bool:
-    return (isinstance(value, (int, float, np.integer, np.floating))
-            and not isinstance(value, bool) and math.isfinite(float(value)))
-
-
-def _number_tuple(values: Any, name: str) -> Tuple[float, ...]:
+def _number_tuple(values: Any, name: str, low: float = -math.inf,
+                  high: float = math.inf) -> Tuple[float, ...]:
+    """``values`` as a tuple of finite numbers, each in the open range (low, high)."""
     if isinstance(values, (str, bytes)) or not isinstance(values, (list, tuple, np.ndarray)):
         raise InvalidInputError(f'settings.{name} must be a list of numbers, got {values!r}')
-    if not all(_finite(value) for value in values):
-        raise InvalidInputError(f'settings.{name} must hold finite numbers, got {values!r}')
-    return tuple(float(value) for value in values)
+    return tuple(check_number(f'settings.{name}[{index}]', value, low, high, low_open=True,
+                              high_open=True) for index, value in enumerate(values))
 
 
 def _point(value: Any, what: str) -> np.ndarray:
-    point = np.asarray(value, dtype=np.float64) if _is_numbers(value) else None
-    if point is None or point.shape != (3,) or not np.all(np.isfinite(point)):
-        raise ValueError(f'{what} must be three finite numbers [m], got {value!r}')
-    return point
+    """A point of three numbers [m]; text and true/false are no coordinates."""
+    if not _is_numbers(value):
+        raise InvalidInputError(f'{what} must be three numbers [x, y, z], got {value!r}')
+    return check_point(what, value)
 
 
 def _is_numbers(value: Any) -> bool:
@@ -245,11 +239,11 @@ def _mission(entry: Any, index: int) -> Mission:
     if not isinstance(vehicle, str) or not vehicle:
         raise _Refused(name, 'vehicle', f'must be a non-empty string, got {vehicle!r}')
     departure = entry.get('departure_s')
-    if not _finite(departure):
-        raise _Refused(name, 'departure_s', f'must be a finite number [s], got {departure!r}')
     priority = entry.get('priority', 0)
-    if isinstance(priority, bool) or not isinstance(priority, (int, np.integer)):
-        raise _Refused(name, 'priority', f'must be an integer, got {priority!r}')
+    for key, reason in (('departure_s', number_refusal(departure)),
+                        ('priority', integer_refusal(priority))):
+        if reason is not None:
+            raise _Refused(name, key, reason)
     points = {}
     for key in ('start', 'goal'):
         if key not in entry:
@@ -403,8 +397,7 @@ def load_missions(source: Union[str, Path, Mapping[str, Any]], *,
     settings = settings_from_mapping(data.get('settings'))
     if now_s is None:
         now_s = data.get('now_s', 0.0)
-    if not _finite(now_s):
-        raise InvalidInputError(f'{origin}: now_s must be a finite number [s], got {now_s!r}')
+    now_s = check_number(f'{origin}: now_s', now_s)
     scene = data.get('scene')
     if scene is not None and not isinstance(scene, str):
         raise InvalidInputError(f'{origin}: scene must be a string, got {scene!r}')

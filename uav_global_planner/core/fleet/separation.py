@@ -38,6 +38,8 @@ import weakref
 
 import numpy as np
 
+from uav_global_planner.core.checks import check_number, check_positive
+
 #: Allowance for rounding in the arc lengths and curve points [m].
 ROUNDING_M = 1e-6
 
@@ -125,8 +127,7 @@ class Flight:
     def sample(self, step_s: float) -> Tuple[np.ndarray, np.ndarray]:
         """Batch times every ``step_s`` seconds from departure, arrival included, and the
         positions there [s], [m] shape (N, 3)."""
-        if not step_s > 0.0:
-            raise ValueError(f'step_s must be > 0, got {step_s!r}')
+        step_s = check_positive('step_s', step_s, 's')
         count = int(math.floor(self.duration_s / step_s + 1e-9))
         times = self.start_s + np.arange(count + 1) * step_s
         if times[-1] < self.end_s:
@@ -139,8 +140,7 @@ class Flight:
 
     def slowed(self, factor: float) -> 'Flight':
         """The same curve flown with every speed times ``factor`` in (0, 1]."""
-        if not 0.0 < factor <= 1.0:
-            raise ValueError(f'speed factor must lie in (0, 1], got {factor!r}')
+        factor = check_number('speed factor', factor, 0.0, 1.0, low_open=True, convert=True)
         return replace(self, time_scale=self.time_scale * float(factor))
 
     @property

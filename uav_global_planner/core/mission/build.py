@@ -12,6 +12,7 @@ from typing import Any, List, Optional, Sequence, Tuple
 
 import numpy as np
 
+from uav_global_planner.core.checks import check_path
 from uav_global_planner.core.config import PlannerConfig
 from uav_global_planner.core.errors import InvalidInputError
 from uav_global_planner.core.io.geodesy import GeodeticOrigin
@@ -38,20 +39,6 @@ from uav_global_planner.core.mission.waypoints import (candidate_points, offset_
                                                        SearchExhausted, WaypointNode,
                                                        WaypointSearch)
 from uav_global_planner.core.path.clearance import certify_segments
-
-
-def _as_path(value: Any, name: str, allow_empty: bool = False) -> np.ndarray:
-    try:
-        points = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise InvalidInputError(f'{name} must be an (N, 3) array of numbers [m]') from None
-    if points.size == 0 and allow_empty:
-        return np.empty((0, 3))
-    if points.ndim != 2 or points.shape[1] != 3 or len(points) == 0:
-        raise InvalidInputError(f'{name} must have shape (N, 3), got {points.shape}')
-    if not np.all(np.isfinite(points)):
-        raise InvalidInputError(f'{name} must be finite; found NaN or inf')
-    return points
 
 
 def _yaw(settings: MissionSettings) -> float:
@@ -109,9 +96,9 @@ def build_mission(smoothed_path: Any, obstacles: ObstacleSet, config: PlannerCon
         raise InvalidInputError('obstacles must be an ObstacleSet')
     if not isinstance(settings, MissionSettings):
         raise InvalidInputError('settings must be a MissionSettings')
-    smoothed = _as_path(smoothed_path, 'smoothed_path')
-    raw = _as_path(raw_path, 'raw_path', allow_empty=True)
-    via_points = _as_path(via, 'via', allow_empty=True)
+    smoothed = check_path('smoothed_path', smoothed_path)
+    raw = check_path('raw_path', raw_path, allow_empty=True)
+    via_points = check_path('via', via, allow_empty=True)
     lo = np.asarray(config.bounds_min, dtype=np.float64)
     hi = np.asarray(config.bounds_max, dtype=np.float64)
     slack_bounds = 1e-6 * max(1.0, float(np.max(hi - lo)))

@@ -6,7 +6,7 @@ from typing import Tuple
 
 import numpy as np
 
-from uav_global_planner.core.checks import check_number
+from uav_global_planner.core.checks import check_number, check_point
 from uav_global_planner.core.errors import InvalidInputError, PlanningError
 from uav_global_planner.core.io.geodesy import GeodeticOrigin
 from uav_global_planner.core.mission.settings import MissionSettings
@@ -84,10 +84,7 @@ class FenceCircle:
     inclusion: bool = True
 
     def __post_init__(self) -> None:
-        center = np.asarray(self.center, dtype=np.float64).reshape(-1)
-        if center.shape != (2,) or not np.all(np.isfinite(center)):
-            raise InvalidInputError(f'fence circle center must be two finite numbers [m], got '
-                                    f'{self.center!r}')
+        center = check_point('fence circle center', self.center, 'xy')
         check_number('fence circle radius', self.radius, 0.0, 1.0e7, low_open=True)
         object.__setattr__(self, 'center', center)
         object.__setattr__(self, 'radius', float(self.radius))

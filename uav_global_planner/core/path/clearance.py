@@ -38,6 +38,7 @@ from typing import Callable, Optional, Tuple
 
 import numpy as np
 
+from uav_global_planner.core.checks import check_non_negative, check_path, check_positive
 from uav_global_planner.core.errors import InvalidInputError
 from uav_global_planner.core.jit import JIT_ENABLED
 from uav_global_planner.core.map.obstacles import ObstacleSet
@@ -480,28 +481,18 @@ def check_margins(margin: float, resolution: float,
     InvalidInputError
         Naming the argument (``margin_name`` for gamma) and the value.
     """
-    try:
-        gamma = float(margin)
-        delta = float(resolution)
-    except (TypeError, ValueError):
-        raise InvalidInputError(f'{margin_name} and resolution must be numbers, got '
-                                f'{margin!r} and {resolution!r}') from None
-    if not math.isfinite(gamma) or gamma < 0.0:
-        raise InvalidInputError(f'{margin_name} must be a finite number >= 0 m, got {gamma}')
-    if not math.isfinite(delta) or delta <= 0.0:
-        raise InvalidInputError(f'resolution must be a finite number > 0 m, got {delta}')
-    return gamma, delta
+    return (check_non_negative(margin_name, margin, 'm'),
+            check_positive('resolution', resolution, 'm'))
 
 
 def _points(value, name: str) -> np.ndarray:
+    """``value`` as rows of three numbers [m]; 3 N numbers in any shape are N rows."""
     try:
-        points = np.asarray(value, dtype=np.float64)
+        rows = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError):
-        raise InvalidInputError(f'{name} must be an (N, 3) array of numbers') from None
-    points = points.reshape(-1, 3) if points.size else points.reshape(0, 3)
-    if not np.all(np.isfinite(points)):
-        raise InvalidInputError(f'{name} must be finite; found NaN or inf')
-    return points
+        return check_path(name, value)  # refused, naming what it got
+    return check_path(name, rows.reshape(-1, 3) if rows.size % 3 == 0 else rows,
+                      allow_empty=True)
 
 
 def certify_segments(obstacles: ObstacleSet, starts, ends, margin: float,

@@ -13,12 +13,11 @@ one each). :class:`Handover` turns the state into both and measures what the pla
 """
 
 from dataclasses import dataclass
-import math
 from typing import Any, Optional, Tuple
 
 import numpy as np
 
-from uav_global_planner.core.errors import InvalidInputError
+from uav_global_planner.core.checks import check_number, check_path, check_point
 from uav_global_planner.core.path.motion_limits import MotionLimits
 from uav_global_planner.core.path.smoothing import SmoothedPath
 from uav_global_planner.core.path.timing import MIN_ALPHA_SHARE, StartMotion
@@ -33,16 +32,7 @@ MAX_START_CURVATURE = 2.0
 
 
 def _vector(value: Any, name: str) -> np.ndarray:
-    if value is None:
-        return np.zeros(3)
-    try:
-        vector = np.asarray(value, dtype=np.float64).reshape(-1)
-    except (TypeError, ValueError):
-        raise InvalidInputError(f'{name} must be three numbers [x, y, z], got {value!r}') from None
-    if vector.shape != (3,) or not np.all(np.isfinite(vector)):
-        raise InvalidInputError(f'{name} must be three finite numbers [x, y, z], got '
-                                f'{vector.tolist()}')
-    return vector
+    return np.zeros(3) if value is None else check_point(name, value)
 
 
 @dataclass(frozen=True, eq=False)
@@ -79,20 +69,8 @@ class Handover:
             when it is not finite or not three numbers (a row of three for the path).
         """
         if yaw is not None:
-            if not isinstance(yaw, (int, float, np.integer, np.floating)) \
-                    or not math.isfinite(float(yaw)):
-                raise InvalidInputError(f'start_yaw must be a finite number of radians, got '
-                                        f'{yaw!r}')
-            yaw = float(yaw)
-        points = None
-        if path is not None:
-            try:
-                points = np.asarray(path, dtype=np.float64)
-            except (TypeError, ValueError):
-                raise InvalidInputError('start_path must be rows of three numbers') from None
-            if points.ndim != 2 or points.shape[1] != 3 or not np.all(np.isfinite(points)):
-                raise InvalidInputError('start_path must be finite rows of three numbers '
-                                        f'[x, y, z], got shape {points.shape}')
+            yaw = check_number('start_yaw', yaw)
+        points = None if path is None else check_path('start_path', path, allow_empty=True)
         return cls(_vector(velocity, 'start_velocity'),
                    _vector(acceleration, 'start_acceleration'), yaw, points)
 

@@ -16,6 +16,7 @@ from typing import Callable, List, Optional, Sequence, Tuple
 
 import numpy as np
 
+from uav_global_planner.core.checks import check_path
 from uav_global_planner.core.errors import InvalidInputError
 from uav_global_planner.core.map.obstacles import ObstacleSet
 from uav_global_planner.core.path.clearance import (certificate_cap, check_margins,
@@ -329,12 +330,4 @@ def as_waypoints(path) -> np.ndarray:
     InvalidInputError
         For another shape, non-numbers, NaN or inf.
     """
-    try:
-        points = np.asarray(path, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise InvalidInputError('path must be an (N, 3) array of numbers') from None
-    if points.ndim != 2 or points.shape[1] != 3 or len(points) == 0:
-        raise InvalidInputError(f'path must have shape (N, 3) with N >= 1, got {points.shape}')
-    if not np.all(np.isfinite(points)):
-        raise InvalidInputError('path must be finite; found NaN or inf')
-    return points
+    return check_path('path', path)

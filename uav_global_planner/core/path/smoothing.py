@@ -121,8 +121,8 @@ from typing import Callable, List, NamedTuple, Optional, Sequence, Tuple
 
 import numpy as np
 
+from uav_global_planner.core.checks import check_point, check_positive
 from uav_global_planner.core.errors import InvalidInputError, NoValidPathError
-from uav_global_planner.core.map.grid import as_point, positive_number
 from uav_global_planner.core.map.obstacles import ObstacleSet
 from uav_global_planner.core.path.clearance import (certificate_cap, check_margins,
                                                     FINEST_SPACING_FRACTION, Pieces,
@@ -316,12 +316,12 @@ def smooth_path(raw_path, obstacles: ObstacleSet, safety_margin: float, resoluti
     step = check_setting('index_step', index_step)
     if knot_spacing is None:
         knot_spacing = max(DEFAULT_KNOT_SPACING_FACTOR * delta, DEFAULT_KNOT_SPACING_MIN)
-    knot_gap = positive_number('knot_spacing', knot_spacing)
+    knot_gap = check_positive('knot_spacing', knot_spacing)
     start = _start_conditions(start_tangent, start_curvature)
     if start_lead_in is not None and start is None:
         raise InvalidInputError('start_lead_in needs start_tangent')
     lead_in = (knot_gap if start_lead_in is None
-               else positive_number('start_lead_in', start_lead_in))
+               else check_positive('start_lead_in', start_lead_in))
     guide = None
     if start_lead_in_path is not None:
         if start is None:
@@ -415,7 +415,7 @@ def _start_conditions(tangent, curvature) -> Optional[Tuple[np.ndarray, np.ndarr
         if curvature is not None:
             raise InvalidInputError('start_curvature needs start_tangent')
         return None
-    direction = as_point(tangent, 'start_tangent')
+    direction = check_point('start_tangent', tangent)
     norm = float(np.linalg.norm(direction))
     if not norm > 0.0:
         raise InvalidInputError('start_tangent must be a nonzero vector, got '
@@ -423,7 +423,7 @@ def _start_conditions(tangent, curvature) -> Optional[Tuple[np.ndarray, np.ndarr
     direction = direction / norm
     if curvature is None:
         return direction, np.zeros(3)
-    bend = as_point(curvature, 'start_curvature')
+    bend = check_point('start_curvature', curvature)
     return direction, bend - float(np.dot(bend, direction)) * direction
 
 
@@ -484,8 +484,8 @@ def _lead_in(origin: np.ndarray, start: Tuple[np.ndarray, np.ndarray], length: f
 def _check_bounds(points: np.ndarray, bounds) -> Optional[Tuple[np.ndarray, np.ndarray]]:
     if bounds is None:
         return None
-    lo = as_point(bounds[0], 'bounds min')
-    hi = as_point(bounds[1], 'bounds max')
+    lo = check_point('bounds min', bounds[0])
+    hi = check_point('bounds max', bounds[1])
     outside = np.any((points < lo - BOUNDS_TOLERANCE) | (points > hi + BOUNDS_TOLERANCE), axis=1)
     if outside.any():
         index = int(np.flatnonzero(outside)[0])
