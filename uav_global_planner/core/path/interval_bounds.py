@@ -17,13 +17,19 @@ part shrinks to the micrometres around the near-cusp, which the reference passes
 three seconds at the default limits, within every limit. (At a true cusp, where the curve's
 parameter speed vanishes and no bound holds, quarters stop at :data:`_SPLIT_MIN_M` and the last
 ones are crawled through in :data:`_CRAWL_CROSS_S` each.)
+
+:meth:`Stations.bounds` is one compiled loop over the intervals
+(:mod:`uav_global_planner.core.jit`; the same source is the pure-Python fallback): the
+refinement asks for it after every cut.
 """
 
 from dataclasses import dataclass
+import math
 from typing import Optional, Tuple
 
 import numpy as np
 
+from uav_global_planner.core.jit import njit
 from uav_global_planner.core.path.curve import PathCurve
 from uav_global_planner.core.path.motion_limits import MotionLimits
 from uav_global_planner.core.path.smoothing import SmoothedPath
@@ -183,7 +189,7 @@ class Stations:
         proved_k, rate = curve.derivative_bounds(starts, stops)
         rate = np.minimum(rate, self.curvature_rate[parent])
         half = 0.5 * (stops - starts)
-        _, tangent, curvature, _ = curve.derivatives3(0.5 * (starts + stops))
+        tangent, curvature = curve.derivatives(0.5 * (starts + stops))
         # (A parameter speed of zero at the middle leaves NaN: no bound from there.)
         tangent = np.nan_to_num(tangent, nan=1.0)
         curvature = np.nan_to_num(curvature, nan=np.inf)
@@ -238,37 +244,16 @@ class Stations:
         ``zeta = J - 3 w alpha |K| - w^3 |K'|`` is at least ``alpha / tau``: what a jump of
         ``alpha`` over the window asks.
         """
-        th, tz = self.tangent[:, 0], self.tangent[:, 1]
-        kh, kz = self.curvature[:, 0], self.curvature[:, 1]
-        keep = 1.0 - TANGENTIAL_RESERVE
-        cap = np.minimum.reduce([_ratio(limits.speed_horizontal, th),
-                                 _ratio(limits.speed_vertical, tz),
-                                 np.sqrt(_ratio(keep * accel_h, kh)),
-                                 np.sqrt(_ratio(keep * accel_z, kz)), self.user_cap])
-        alpha = np.minimum(_ratio(1.0, th) * (accel_h - cap ** 2 * kh),
-                           _ratio(1.0, tz) * (accel_z - cap ** 2 * kz))
-        # Jerk: alpha (J / max(alpha)) + 3 w alpha |K| + w^3 |K'| <= J. On a straight the
-        # tangential jerk takes all of J; in a bend speed matters more than tangential
-        # acceleration, so alpha gives way first (down to MIN_ALPHA_SHARE of itself), and only
-        # then the speed cap.
-        jerk = limits.jerk
-        if per_alpha is None:
-            per_alpha = jerk / float(np.max(alpha))
-        knorm, rate = self.curvature_norm, self.curvature_rate
-        spare = jerk - cap ** 3 * rate
-        wanted = spare / (per_alpha + 3.0 * cap * knorm)
-        alpha = np.clip(wanted, MIN_ALPHA_SHARE * alpha, alpha)
-        # (Within rounding: alpha was just fitted to this very sum.)
-        fits = alpha * (per_alpha + 3.0 * cap * knorm) + cap ** 3 * rate <= jerk * (1.0 + 1e-12)
-        cap = np.where(fits, cap, np.minimum(cap, _cubic_cap(3.0 * alpha * knorm, rate,
-                                                             jerk - alpha * per_alpha)))
-        zeta = jerk - 3.0 * cap * alpha * knorm - cap ** 3 * rate
-        # A cusp, whose curvature no bound can hold, is crawled through rather than stopped
-        # at for good: at _CRAWL, or in _CRAWL_CROSS_S on an interval shorter than that
-        # takes (:meth:`refined` makes them around a near-cusp).
-        if crawl:
-            cap = np.maximum(cap, np.minimum(_CRAWL, np.diff(self.s) / _CRAWL_CROSS_S))
-        return cap, alpha, np.maximum(zeta, alpha * per_alpha), 1.0 / per_alpha
+        count = len(self.s) - 1
+        cap, alpha, zeta = np.empty(count), np.empty(count), np.empty(count)
+        dense = [np.ascontiguousarray(values, dtype=np.float64)
+                 for values in (self.tangent, self.curvature, self.curvature_norm,
+                                self.curvature_rate, self.user_cap)]
+        per = _bounds_kernel(
+            *dense, np.diff(self.s), float(limits.speed_horizontal), float(limits.speed_vertical),
+            float(accel_h), float(accel_z), float(limits.jerk),
+            -1.0 if per_alpha is None else float(per_alpha), crawl, cap, alpha, zeta)
+        return cap, alpha, zeta, 1.0 / per
 
 
 def _components(vectors: np.ndarray) -> np.ndarray:
@@ -282,30 +267,83 @@ def _ratio(limit: float, component: np.ndarray) -> np.ndarray:
     return np.where(component > 0.0, limit / safe, np.inf)
 
 
-def _quotient(numerator: np.ndarray, denominator: np.ndarray) -> np.ndarray:
-    """``numerator / denominator`` with +inf where the denominator vanishes."""
-    safe = np.where(denominator > 0.0, denominator, 1.0)
-    return np.where(denominator > 0.0, numerator / safe, np.inf)
+@njit
+def _over(limit, component):  # pragma: no cover - compiled
+    """``limit / component``, +inf where the component vanishes."""
+    return limit / component if component > 0.0 else np.inf
 
 
-def _cubic_cap(linear: np.ndarray, cubic: np.ndarray, room: np.ndarray) -> np.ndarray:
-    """Largest ``w >= 0`` with ``linear * w + cubic * w^3 <= room`` (coefficients and room
-    >= 0, each per interval).
+@njit
+def _least(a, b):  # pragma: no cover - compiled
+    """The smaller of two numbers, NaN if either is (as numpy.minimum)."""
+    if a != a or b != b:
+        return a + b
+    return a if a <= b else b
+
+
+@njit
+def _cubic_cap(linear, cubic, room):  # pragma: no cover - compiled
+    """Largest ``w >= 0`` with ``linear * w + cubic * w^3 <= room`` (coefficients >= 0).
 
     Newton's method from an upper bound decreases monotonically to the root (the left side is
     convex and increasing); the result is rounded down.
     """
-    room = np.broadcast_to(np.maximum(room, 0.0), np.shape(linear))
-    w = np.minimum(_quotient(room, linear), np.cbrt(_quotient(room, cubic)))
-    finite = np.isfinite(w)
-    x = w[finite]
-    a, b, c = linear[finite], cubic[finite], room[finite]
+    room = max(room, 0.0)
+    w = _least(_over(room, linear), np.cbrt(_over(room, cubic)))
+    if not math.isfinite(w):
+        return w
+    x = w
     for _ in range(60):
-        value = a * x + b * x ** 3 - c
-        slope = a + 3.0 * b * x ** 2
-        step = np.where(slope > 0.0, value / np.where(slope > 0.0, slope, 1.0), 0.0)
-        x = x - np.maximum(step, 0.0)
-        if np.all(step <= 1e-14 * np.maximum(x, 1e-12)):
+        value = linear * x + cubic * x ** 3 - room
+        slope = linear + 3.0 * cubic * x ** 2
+        step = value / slope if slope > 0.0 else 0.0
+        x = x - max(step, 0.0)
+        if step <= 1e-14 * max(x, 1e-12):
             break
-    w[finite] = x * (1.0 - 1e-12)
-    return w
+    return x * (1.0 - 1e-12)
+
+
+@njit
+def _bounds_kernel(tangent, curvature, knorm, rate, user, ds, speed_h, speed_z, accel_h,
+                   accel_z, jerk, per_alpha, crawl, cap, alpha, zeta):  # pragma: no cover
+    """:meth:`Stations.bounds` per interval into ``cap``, ``alpha``, ``zeta``; returns
+    ``J / max(alpha)`` when ``per_alpha`` is negative, else ``per_alpha``."""
+    keep = 1.0 - TANGENTIAL_RESERVE
+    count = cap.shape[0]
+    top = -np.inf
+    for i in range(count):
+        th, tz = tangent[i, 0], tangent[i, 1]
+        kh, kz = curvature[i, 0], curvature[i, 1]
+        w = _least(_least(_least(_least(_over(speed_h, th), _over(speed_z, tz)),
+                                 math.sqrt(_over(keep * accel_h, kh))),
+                          math.sqrt(_over(keep * accel_z, kz))), user[i])
+        cap[i] = w
+        a = _least(_over(1.0, th) * (accel_h - w ** 2 * kh),
+                   _over(1.0, tz) * (accel_z - w ** 2 * kz))
+        alpha[i] = a
+        if a > top or a != a:
+            top = a
+    if per_alpha < 0.0:
+        per_alpha = jerk / top
+    for i in range(count):
+        w, a = cap[i], alpha[i]
+        # Jerk: alpha (J / max(alpha)) + 3 w alpha |K| + w^3 |K'| <= J. On a straight the
+        # tangential jerk takes all of J; in a bend speed matters more than tangential
+        # acceleration, so alpha gives way first (down to MIN_ALPHA_SHARE of itself), and
+        # only then the speed cap.
+        spare = jerk - w ** 3 * rate[i]
+        wanted = spare / (per_alpha + 3.0 * w * knorm[i])
+        a = _least(max(wanted, MIN_ALPHA_SHARE * a), a)
+        # (Within rounding: alpha was just fitted to this very sum.)
+        if not a * (per_alpha + 3.0 * w * knorm[i]) + w ** 3 * rate[i] <= jerk * (1.0 + 1e-12):
+            w = _least(w, _cubic_cap(3.0 * a * knorm[i], rate[i], jerk - a * per_alpha))
+        z = jerk - 3.0 * w * a * knorm[i] - w ** 3 * rate[i]
+        # A cusp, whose curvature no bound can hold, is crawled through rather than stopped
+        # at for good: at _CRAWL, or in _CRAWL_CROSS_S on an interval shorter than that
+        # takes (:meth:`Stations.refined` makes them around a near-cusp).
+        if crawl:
+            w = max(w, min(_CRAWL, ds[i] / _CRAWL_CROSS_S))
+        cap[i] = w
+        alpha[i] = a
+        zeta[i] = max(z, a * per_alpha)
+    return per_alpha
