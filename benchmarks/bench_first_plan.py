@@ -7,7 +7,9 @@ Run inside the project's environment::
 
 Every figure is the wall time of real ``uav-plan`` processes, started with their own
 ``XDG_CACHE_HOME`` and without ``NUMBA_CACHE_DIR``, as for a user who just installed the
-package (the kernels then go to ``$XDG_CACHE_HOME/uav_global_planner/numba``):
+package (the kernels then go to ``$XDG_CACHE_HOME/uav_global_planner/numba``). They write
+Python's bytecode (into a folder of the benchmark, ``PYTHONPYCACHEPREFIX``), as an install
+does, even where the environment sets ``PYTHONDONTWRITEBYTECODE``; the first run compiles it:
 
 - first run: ``uav-plan plan SCENE`` with an empty cache (it compiles every kernel it uses);
 - ``uav-plan warmup`` with another empty cache, then the first ``uav-plan plan SCENE``;
@@ -55,10 +57,12 @@ sys.exit(main(sys.argv[1:]))
 """
 
 
-def _environment(cache_home: Path) -> Dict[str, str]:
+def _environment(cache_home: Path, bytecode: Path) -> Dict[str, str]:
     env = dict(os.environ)
     env.pop('NUMBA_CACHE_DIR', None)
     env.pop('UAV_PLANNER_DISABLE_JIT', None)
+    env.pop('PYTHONDONTWRITEBYTECODE', None)
+    env['PYTHONPYCACHEPREFIX'] = str(bytecode)
     env['XDG_CACHE_HOME'] = str(cache_home)
     env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     return env
@@ -118,8 +122,8 @@ def main(argv: Optional[List[str]] = None) -> int:
     print(f'load average before: {load_before[0]:.2f} {load_before[1]:.2f} '
           f'{load_before[2]:.2f} ({os.cpu_count()} cores)')
     with tempfile.TemporaryDirectory(prefix='uav_first_plan_') as folder:
-        plain = _environment(Path(folder) / 'plain')
-        warmed = _environment(Path(folder) / 'warmed')
+        plain = _environment(Path(folder) / 'plain', Path(folder) / 'bytecode')
+        warmed = _environment(Path(folder) / 'warmed', Path(folder) / 'bytecode')
         first_s, run = _timed([uav_plan, 'plan', args.scene], plain)
         compiled = [line for line in run.stderr.splitlines() if 'compiled' in line]
         warmup_s, warm_run = _timed([uav_plan, 'warmup'], warmed)

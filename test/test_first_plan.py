@@ -147,6 +147,35 @@ def test_a_plan_imports_no_plotting_and_no_ros(warm_cache, tmp_path):
     assert result['imported'] == ['numba', 'scipy']
 
 
+# Imports the planner, then plans a small scene: numba is imported by the first kernel call,
+# and kernels that call kernels (in other modules) find their dispatchers.
+_LAZY = """
+import json, sys
+import numpy as np
+from uav_global_planner.core import jit, ObstacleSet, Planner, PlannerConfig, Sphere
+from uav_global_planner.core.map import dense_inflation
+before = 'numba' in sys.modules
+config = PlannerConfig(bounds_min=(-2.0, -2.0, 0.0), bounds_max=(2.0, 2.0, 3.0), resolution=0.25)
+result = Planner(config, ObstacleSet([Sphere([0.0, 0.0, 1.5], 0.6)])).plan(
+    [-1.5, -1.5, 0.5], [1.5, 1.5, 2.0])
+kernels = [value for value in vars(dense_inflation).values() if hasattr(value, 'py_func')]
+print(json.dumps({'before': before, 'after': 'numba' in sys.modules, 'ok': result.ok,
+                  'jit': jit.JIT_ENABLED, 'kernels': len(kernels),
+                  'dispatchers': sum(type(k).__name__ == 'CPUDispatcher' for k in kernels)}))
+"""
+
+
+@pytest.mark.slow
+def test_numba_is_imported_by_the_first_kernel_call(warm_cache, tmp_path):
+    run = subprocess.run([sys.executable, '-c', _LAZY], capture_output=True, text=True,
+                         env=_environment(tmp_path, warm_cache), timeout=900)
+    result = json.loads(run.stdout.strip().splitlines()[-1])
+    assert result['jit'] and result['ok'], run.stderr[-2000:]
+    assert not result['before'] and result['after']
+    # The module's kernels are numba's dispatchers once one ran.
+    assert result['kernels'] > 0 and result['dispatchers'] == result['kernels']
+
+
 def test_the_cache_folder_follows_xdg_cache_home(tmp_path):
     env = _environment(tmp_path, tmp_path / 'xdg')
     code = 'from uav_global_planner.core import jit\nprint(jit.cache_dir())'

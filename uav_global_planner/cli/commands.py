@@ -12,7 +12,7 @@ from dataclasses import replace
 import json
 import math
 import sys
-from typing import Any, Callable, Optional, Tuple
+from typing import Any, Callable, Optional, Tuple, TYPE_CHECKING
 
 import numpy as np
 
@@ -29,17 +29,16 @@ from uav_global_planner.core.budget import PlanBudget, PlanStage
 from uav_global_planner.core.config import validate_config
 from uav_global_planner.core.errors import InvalidInputError, PlanningError
 from uav_global_planner.core.io.geofence import load_geofence
-from uav_global_planner.core.io.mapfiles import load_map_files
 from uav_global_planner.core.io.scene import find_scene, load_scene, Scene, with_ground
 from uav_global_planner.core.map.airspace import Airspace
 from uav_global_planner.core.map.obstacles import ObstacleSet
-from uav_global_planner.core.map.unknown_space import combine, unknown_from_map_files
-from uav_global_planner.core.path.motion_limits import MotionLimits
-from uav_global_planner.core.planner import Planner
-from uav_global_planner.core.result import PlanResult
-from uav_global_planner.core.search.start_admission import Admission, admit, explain, GOAL, START
 from uav_global_planner.core.settings import planner_settings
 from uav_global_planner.core.status import PlanStatus
+
+if TYPE_CHECKING:  # imported where used: the scene is read before the planner is imported
+    from uav_global_planner.core.planner import Planner
+    from uav_global_planner.core.result import PlanResult
+    from uav_global_planner.core.search.start_admission import Admission
 
 # Grids from this many nodes up are announced on stderr, with their memory, before they are built.
 _ANNOUNCE_GRID_NODES = 10_000_000
@@ -142,6 +141,8 @@ def _scene_from_args(args: argparse.Namespace) -> Scene:
         raise InvalidInputError('--map-downsample needs at least one --map FILE')
     if not args.map:
         return scene
+    from uav_global_planner.core.io.mapfiles import load_map_files
+    from uav_global_planner.core.map.unknown_space import combine, unknown_from_map_files
     try:
         # 0 means no downsampling, as for the node's map_downsample.
         # Checked against the bounds and delta; gamma as asked, without the scene's map margin.
@@ -188,25 +189,32 @@ def _without_geofence(scene: Scene) -> Scene:
     return replace(scene, obstacles=ObstacleSet(others), airspace=Airspace())
 
 
-def _warm_planner(scene: Scene, budget: PlanBudget) -> Tuple[Planner, bool]:
-    """A planner with its grid built within the plan's ``budget`` and its kernels loaded, so
-    the reported time is search; and whether the grid is built (False: the budget ran out
-    during the build, which the plan with that budget then reports, naming the stage)."""
+def _warm_planner(scene: Scene, algorithm: str) -> Tuple['Planner', bool, PlanBudget]:
+    """A planner with its grid built within the plan's budget and the search kernels of
+    ``algorithm`` loaded (not the other searches'), so the reported time is search; whether
+    the grid is built (False: the budget ran out during the build, which the plan with that
+    budget then reports, naming the stage); and the budget (max_planning_time bounds the whole
+    plan from the grid build on). The planner's modules are imported first: their import is
+    no planning time."""
+    from uav_global_planner.core.planner import Planner
+    budget = PlanBudget(scene.config.max_planning_time, progress=_progress_to_stderr)
     planner = Planner(scene.config, scene.obstacles, unknown=scene.unknown)
     try:
-        planner.warm_up(budget)
+        planner.warm_up(budget, (algorithm,))
     except PlanningError:
-        return planner, False
-    return planner, True
+        return planner, False, budget
+    return planner, True, budget
 
 
-def _plan_admitted(planner: Planner, scene: Scene, algorithm: str, ready: bool = True,
-                   **options: Any) -> Tuple[PlanResult, Tuple[Admission, Admission]]:
+def _plan_admitted(planner: 'Planner', scene: Scene, algorithm: str, ready: bool = True,
+                   **options: Any) -> Tuple['PlanResult', Tuple['Admission', 'Admission']]:
     """Plan the scene from its start to its goal, each first admitted by the scene's
     start_tolerance (:mod:`uav_global_planner.core.search.start_admission`): a start or goal on the
     ground is lifted to the lowest free height, and a refusal says how far and the fix.
     Without a grid (``ready`` False: the budget ran out building it) the points are taken as
     asked and the plan reports the timeout."""
+    from uav_global_planner.core.search.start_admission import (Admission, admit, explain, GOAL,
+                                                                START)
     admissions = ((admit(planner, scene.start, START), admit(planner, scene.goal, GOAL))
                   if ready else (Admission(START, scene.start, scene.start),
                                  Admission(GOAL, scene.goal, scene.goal)))
@@ -223,9 +231,7 @@ def _progress_to_stderr(stage: PlanStage, elapsed_s: float, budget_s: float) -> 
 
 
 def _run_plan(args: argparse.Namespace, scene: Scene) -> int:
-    # One budget from the grid build on: max_planning_time bounds the whole plan.
-    budget = PlanBudget(scene.config.max_planning_time, progress=_progress_to_stderr)
-    planner, ready = _warm_planner(scene, budget)
+    planner, ready, budget = _warm_planner(scene, args.algorithm)
     result, admissions = _plan_admitted(planner, scene, args.algorithm, ready, budget=budget)
     if args.json:
         output = result_to_dict(result)
@@ -296,8 +302,7 @@ def _run_compare(args: argparse.Namespace, scene: Scene) -> int:
 
 def _run_plot(args: argparse.Namespace, scene: Scene) -> int:
     from uav_global_planner.cli.plotting import plot_scene_html, plot_scene_paths
-    budget = PlanBudget(scene.config.max_planning_time, progress=_progress_to_stderr)
-    planner, ready = _warm_planner(scene, budget)
+    planner, ready, budget = _warm_planner(scene, args.algorithm)
     result, admissions = _plan_admitted(planner, scene, args.algorithm, ready, budget=budget)
     for line in map_report_lines(scene.map_reports) + admission_lines(admissions):
         print(line)
@@ -318,6 +323,7 @@ def _run_plot(args: argparse.Namespace, scene: Scene) -> int:
         print(f'interactive view written to {args.html}')
     if args.profile and result.trajectory is not None:
         from uav_global_planner.cli.profile_plot import plot_profile
+        from uav_global_planner.core.path.motion_limits import MotionLimits
         plot_profile(result.trajectory, MotionLimits.from_config(scene.config), args.profile,
                      title=title)
         print(f'time profile written to {args.profile}')

@@ -17,9 +17,18 @@ folder of the user: ``$XDG_CACHE_HOME/uav_global_planner/numba`` (``~/.cache/...
 leave that one-off cost out; :func:`on_next_compile` lets a program say why its first run
 waits; :func:`kernel_counts` tells how many kernels were compiled and how many were loaded
 from the cache.
+
+When: numba is imported at the first call of a kernel, not when a module defining kernels is
+imported (numba takes 0.3-1 s to import), so a program reads its options and its input first.
+Until then :func:`njit` hands out lazy kernels; the first call makes the dispatchers of every
+kernel decorated so far and puts them in place of the lazy ones in the modules that hold them,
+so that compiled code calling another kernel finds its dispatcher.
 """
 
+import functools
+import importlib.util
 import os
+import sys
 import threading
 import time
 from types import ModuleType
@@ -39,24 +48,28 @@ def default_cache_dir() -> str:
 
 
 if not os.environ.get(CACHE_ENV):
-    # Read by numba when it is imported (just below, or earlier by another module: then
-    # numba.config is set as well, further down).
+    # Read by numba when it is imported (by _import_numba, or earlier by another module: then
+    # numba.config is set as well, there).
     os.environ[CACHE_ENV] = default_cache_dir()
 
-numba: Optional[ModuleType]
-try:
+
+def _numba_installed() -> bool:
+    """True when numba can be imported (found, not disabled), without importing it."""
     if _DISABLED:
-        raise ImportError('disabled by UAV_PLANNER_DISABLE_JIT=1')
-    import numba
-except ImportError:
-    numba = None
+        return False
+    if 'numba' in sys.modules:
+        return True
+    try:
+        return importlib.util.find_spec('numba') is not None
+    except (ImportError, ValueError):
+        return False
+
 
 #: True when functions decorated with :func:`njit` are compiled by numba.
-JIT_ENABLED: bool = numba is not None
+JIT_ENABLED: bool = _numba_installed()
 
-if numba is not None and not numba.config.CACHE_DIR:
-    # numba was imported before this module, without NUMBA_CACHE_DIR.
-    numba.config.CACHE_DIR = os.environ[CACHE_ENV]
+#: numba, once the first kernel call imported it (None before, and without the JIT).
+numba: Optional[ModuleType] = None
 
 # Every dispatcher njit made, for kernel_counts().
 _DISPATCHERS: List[Any] = []
@@ -94,22 +107,60 @@ _CLOCK = _CompileClock()
 #: Compilations and loads from the cache together (nested ones counted once): the one-off work
 #: of a process's first calls, which a time budget leaves out.
 _ONE_OFF = _CompileClock()
-if numba is not None:
-    from numba.core import event as _event
+# Guards the import of numba and the making of the dispatchers (a kernel may first be called
+# on two threads at once).
+_LOCK = threading.RLock()
 
-    class _Listener(_event.Listener):
-        # The one-off clock encloses the compile clock, so one_off_seconds() never falls
-        # short of compile_seconds() over the same compilations.
-        def on_start(self, event: Any) -> None:
-            _ONE_OFF.on_start(event)
-            _CLOCK.on_start(event)
 
-        def on_end(self, event: Any) -> None:
-            _CLOCK.on_end(event)
-            _ONE_OFF.on_end(event)
+def _import_numba() -> Optional[ModuleType]:
+    """numba, imported on first use with its cache folder and the compile clocks set (None
+    without the JIT, or when numba fails to import: the kernels then run as Python)."""
+    global numba, JIT_ENABLED
+    with _LOCK:
+        if numba is not None or not JIT_ENABLED:
+            return numba
+        # numba imports coverage (0.1-0.3 s) to report compiled lines to a running measurement;
+        # one runs only when coverage was imported already.
+        hide_coverage = 'coverage' not in sys.modules
+        if hide_coverage:
+            sys.modules['coverage'] = None  # type: ignore[assignment]
+        try:
+            import numba as module
+            from numba.core import event
+            from numba.extending import typeof_impl
+        except ImportError:
+            JIT_ENABLED = False
+            return None
+        finally:
+            if hide_coverage and sys.modules.get('coverage', 0) is None:
+                del sys.modules['coverage']
+        config: Any = module.config
+        if not config.CACHE_DIR:
+            # numba was imported before this module, without NUMBA_CACHE_DIR.
+            config.CACHE_DIR = os.environ[CACHE_ENV]
 
-    # Fired for compilations only, not for kernels loaded from the cache.
-    _event.register('numba:compile', _Listener())
+        class _Listener(event.Listener):
+            # The one-off clock encloses the compile clock, so one_off_seconds() never falls
+            # short of compile_seconds() over the same compilations.
+            def on_start(self, event: Any) -> None:
+                _ONE_OFF.on_start(event)
+                _CLOCK.on_start(event)
+
+            def on_end(self, event: Any) -> None:
+                _CLOCK.on_end(event)
+                _ONE_OFF.on_end(event)
+
+        # Fired for compilations only, not for kernels loaded from the cache.
+        event.register('numba:compile', _Listener())
+
+        @typeof_impl.register(_LazyKernel)
+        def _typeof_lazy(value: '_LazyKernel', context: Any) -> Any:
+            # A lazy kernel held where the swap does not reach (a container, a class), seen
+            # by compiled code: the type of its dispatcher.
+            return module.typeof(value.dispatcher(), context.purpose)
+
+        numba = module
+        return numba
 
 
 def compile_seconds() -> float:
@@ -134,20 +185,21 @@ def one_off_seconds() -> float:
 
 
 def _time_cache_loads(dispatcher: Any) -> None:
-    """Count the dispatcher's loads from the cache in :func:`one_off_seconds`."""
-    cache: Any = getattr(dispatcher, '_cache', None)
-    load = getattr(cache, 'load_overload', None)
-    if cache is None or load is None:
+    """Count the dispatcher's specialising in :func:`one_off_seconds`: each new argument
+    type's compilation or load from the cache, with numba's work around it (type resolution,
+    the new overload's entry point)."""
+    compile_ = getattr(dispatcher, 'compile', None)
+    if compile_ is None:
         return
 
-    def timed_load(*args: Any, **kwargs: Any) -> Any:
+    def timed_compile(*args: Any, **kwargs: Any) -> Any:
         _ONE_OFF.on_start(None)
         try:
-            return load(*args, **kwargs)
+            return compile_(*args, **kwargs)
         finally:
             _ONE_OFF.on_end(None)
 
-    cache.load_overload = timed_load
+    dispatcher.compile = timed_compile
 
 
 def on_next_compile(callback: Callable[[], None]) -> Callable[[], None]:
@@ -177,8 +229,10 @@ def cache_dir() -> Optional[str]:
     :func:`default_cache_dir`. numba falls back to ``__pycache__`` beside the sources when the
     folder cannot be created or written.
     """
-    if numba is None:
+    if not JIT_ENABLED:
         return None
+    if numba is None:  # not imported yet: it will read the environment's value
+        return os.environ.get(CACHE_ENV) or None
     return str(numba.config.CACHE_DIR) or None
 
 
@@ -208,21 +262,115 @@ def kernel_counts() -> KernelCounts:
     return KernelCounts(compiled, loaded)
 
 
+class _LazyKernel:
+    """A kernel whose dispatcher is made at the first call of any kernel (numba imported then).
+
+    Called, or asked for a dispatcher's attribute (``signatures``, ``stats``), it makes the
+    dispatchers of every kernel decorated so far (:func:`_make_dispatchers`). ``py_func`` is
+    the Python function, as on a dispatcher.
+    """
+
+    def __init__(self, function: Callable, settings: Dict[str, Any]) -> None:
+        self._target: Optional[Callable] = None
+        self._settings = settings
+        self.py_func = function
+        functools.update_wrapper(self, function)
+
+    def dispatcher(self) -> Callable:
+        """The dispatcher (the Python function when numba failed to import)."""
+        if self._target is None:
+            _make_dispatchers()
+        assert self._target is not None
+        return self._target
+
+    def __call__(self, *args: Any, **kwargs: Any) -> Any:
+        return self.dispatcher()(*args, **kwargs)
+
+    def __getattr__(self, name: str) -> Any:
+        # Only for names the kernel does not have itself: the dispatcher's.
+        if name.startswith('__') or name == '_target':
+            raise AttributeError(name)
+        return getattr(self.dispatcher(), name)
+
+    def __repr__(self) -> str:
+        return f'<kernel {self.__qualname__}>'
+
+
+# Lazy kernels whose dispatchers are not made yet.
+_PENDING: List[_LazyKernel] = []
+
+
+def _dispatcher(function: Callable, settings: Dict[str, Any]) -> Callable:
+    """numba's dispatcher of ``function``, counted in :func:`kernel_counts` and the clocks."""
+    assert numba is not None
+    dispatcher = numba.njit(**settings)(function)
+    _time_cache_loads(dispatcher)
+    _DISPATCHERS.append(dispatcher)
+    return dispatcher
+
+
+def _make_dispatchers() -> None:
+    """Import numba, make the dispatcher of every pending lazy kernel and put it in place of
+    the kernel in every module that holds it (compiled code resolves its callees there).
+
+    Counted in :func:`one_off_seconds`, as the loads from the cache: once per process.
+    """
+    _ONE_OFF.on_start(None)
+    try:
+        _make_pending()
+    finally:
+        _ONE_OFF.on_end(None)
+
+
+def _make_pending() -> None:
+    with _LOCK:
+        module = _import_numba()
+        made = 0
+        try:
+            # One by one: a kernel numba refuses (its source file gone, say) raises here, as
+            # at its definition, and leaves the others pending for the next call.
+            while _PENDING:
+                kernel = _PENDING[0]
+                kernel._target = (kernel.py_func if module is None
+                                  else _dispatcher(kernel.py_func, kernel._settings))
+                _PENDING.pop(0)
+                made += 1
+        finally:
+            if made:
+                _swap_made()
+
+
+def _swap_made() -> None:
+    """Put the dispatchers made in place of their lazy kernels, in every module."""
+    with _LOCK:
+        for loaded in list(sys.modules.values()):
+            names = getattr(loaded, '__dict__', None)
+            if not isinstance(names, dict):
+                continue
+            for name, value in list(names.items()):
+                if type(value) is _LazyKernel and value._target is not None:
+                    names[name] = value._target
+
+
 def njit(func: Optional[Callable] = None, **options: Any) -> Any:
     """Compile ``func`` in nopython mode when the JIT is enabled, else return it unchanged.
 
     Usable bare (``@njit``) or with numba options (``@njit(fastmath=False)``); the options
-    override the defaults ``cache=True, nogil=True`` and are ignored without the JIT.
+    override the defaults ``cache=True, nogil=True`` and are ignored without the JIT. Before
+    the first kernel call the result is a lazy kernel (see the module's docstring), after it
+    numba's dispatcher.
     """
     def decorate(function: Callable) -> Callable:
-        if numba is None:
+        if not JIT_ENABLED:
             return function
         settings: Dict[str, Any] = {'cache': True, 'nogil': True}
         settings.update(options)
-        dispatcher = numba.njit(**settings)(function)
-        _time_cache_loads(dispatcher)
-        _DISPATCHERS.append(dispatcher)
-        return dispatcher
+        with _LOCK:
+            if numba is not None:
+                return _dispatcher(function, settings)
+            kernel = _LazyKernel(function, settings)
+            _PENDING.append(kernel)
+            return kernel
 
     if func is None:
         return decorate

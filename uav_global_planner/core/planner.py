@@ -267,7 +267,8 @@ class Planner:
                                            fallback)
         return True
 
-    def warm_up(self, budget: Optional[PlanBudget] = None) -> None:
+    def warm_up(self, budget: Optional[PlanBudget] = None,
+                algorithms: Sequence[str] = ALGORITHMS) -> None:
         """Compile the search kernels and build the grid, so the first real plan is fast.
 
         Parameters
@@ -275,6 +276,9 @@ class Planner:
         budget : PlanBudget, optional
             The request this prepares (passed on to :meth:`plan`): the grid build counts
             against it, as its stage ``grid build``.
+        algorithms : sequence of str
+            The searches whose kernels are compiled (or loaded from the cache): all by
+            default; a process that plans with one algorithm loads that one's only.
 
         Raises
         ------
@@ -289,7 +293,7 @@ class Planner:
         if first is None:
             return
         node = inflated.grid.unravel(first)
-        for algorithm in ALGORITHMS:
+        for algorithm in algorithms:
             self._search(inflated, node, node, algorithm)
 
     def path_is_clear(self, positions, obstacles: Optional[ObstacleSet] = None) -> bool:

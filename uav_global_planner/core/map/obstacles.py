@@ -17,7 +17,6 @@ import threading
 from typing import Dict, Iterable, Sequence, Union
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from uav_global_planner.core.checks import check_point, check_positive
 from uav_global_planner.core.errors import InvalidInputError
@@ -198,7 +197,10 @@ class ObstacleSet:
         # their memory.
         self.points = (clouds[0] if len(clouds) == 1
                        else np.concatenate(clouds) if clouds else np.empty((0, 3)))
-        self._tree = cKDTree(self.points) if len(self.points) else None
+        self._tree = None
+        if len(self.points):
+            from scipy.spatial import cKDTree  # only for point clouds: a slow import
+            self._tree = cKDTree(self.points)
         sphere_rows = np.zeros((len(spheres), 6))
         sphere_rows[:, :3] = self.sphere_centers
         sphere_rows[:, 3] = self.sphere_radii

@@ -13,7 +13,6 @@ node; each box takes the cheapest of the three (:func:`points_in_box`), all of t
 import math
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from uav_global_planner.core.map.build_steps import (Checkpoint, cpu_count, run_tasks,
                                                      STAMP_CHUNK, THREADS)
@@ -137,6 +136,7 @@ def mark_by_nearest_point_in(grid: VoxelGrid, points: np.ndarray, gamma: float,
     same formula as the stamping (differences squared and summed in axis order, then the
     square root); its query prunes beyond the bound strictly, so the bound gets a hair of room
     and the test applies the rule exactly."""
+    from scipy.spatial import cKDTree  # a slow import, for point clouds only
     tree = cKDTree(points)
     upper = gamma + 1e-9 * (1.0 + gamma)
     axes = [np.arange(base[a], base[a] + block.shape[a]) for a in range(3)]

@@ -304,4 +304,6 @@ def _clipped(ranges: np.ndarray, first: np.ndarray, last: np.ndarray) -> np.ndar
 def _bucket_ranges(ranges: np.ndarray, windows: np.ndarray):
     """Items listed under the windows their index ranges meet: ``start`` (one per window and one
     more) and ``items`` (C order over windows, items in order within a window)."""
-    return bucket_spans(ranges[:, 0, :], ranges[:, 1, :], _WINDOW, windows)
+    # C-contiguous lows and highs, as the dense layout passes them (one specialisation).
+    return bucket_spans(np.ascontiguousarray(ranges[:, 0, :]),
+                        np.ascontiguousarray(ranges[:, 1, :]), _WINDOW, windows)

@@ -20,7 +20,6 @@ import math
 from typing import Iterator, List, Optional, Tuple
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from uav_global_planner.core.map.obstacles import ObstacleSet
 from uav_global_planner.core.mission.certify import (certify_triangle, TURN_CELL_INRADIUS,
@@ -277,6 +276,7 @@ def candidate_points(smoothed: np.ndarray, raw: np.ndarray, via: np.ndarray, spa
     marks = np.floor(arc / spacing)
     keep = np.r_[True, marks[1:] != marks[:-1]]
     keep[-1] = True
+    from scipy.spatial import cKDTree  # a slow import, for missions only
     tree = cKDTree(smoothed)
     point_parts: List[np.ndarray] = [smoothed[keep]]
     progress_parts: List[np.ndarray] = [np.flatnonzero(keep).astype(np.float64)]
