@@ -25,7 +25,8 @@ setup(
     ],
     # Versions are pinned in requirements.txt only.
     install_requires=['setuptools', 'numpy', 'scipy', 'pyyaml', 'numba', 'matplotlib'],
-    extras_require={'test': ['pytest', 'hypothesis', 'psutil', 'flake8', 'pymavlink', 'mavsdk'],
+    extras_require={'test': ['pytest', 'pytest-xdist', 'hypothesis', 'psutil', 'flake8',
+                             'pymavlink', 'mavsdk'],
                     # Map frame <-> WGS84 for mission export (core/geodesy.py).
                     'geodesy': ['pymap3d'],
                     # GeoTIFF terrain (core/dem.py), imported only when one is read.

@@ -16,4 +16,21 @@ if ! command -v chromium >/dev/null 2>&1; then
     echo "warning: chromium not found; install it (apt-get install chromium) for the HTML test" >&2
   fi
 fi
-python -m pytest -p no:cacheprovider "$@"
+# Two workers run the tests (a test file stays on one worker, with its fixtures); then the tests
+# marked serial (test/conftest.py: they measure time or fly a simulator in real time) run alone.
+# UAV_TEST_WORKERS=0 runs everything in one process. Exit code 5 (nothing selected, e.g. when the
+# arguments name no serial test) counts as success for one phase, not for both.
+workers="${UAV_TEST_WORKERS:-2}"
+parallel=0
+python -m pytest -p no:cacheprovider -n "$workers" --dist loadfile --serial skip "$@" \
+  || parallel=$?
+serial=0
+python -m pytest -p no:cacheprovider --serial only "$@" || serial=$?
+if [ "$parallel" = 5 ] && [ "$serial" = 5 ]; then
+  exit 5
+fi
+for code in "$parallel" "$serial"; do
+  if [ "$code" != 0 ] && [ "$code" != 5 ]; then
+    exit "$code"
+  fi
+done
