@@ -199,9 +199,9 @@ def push_start(chunk_node, chunk_rec, chunk_meta, ends, qstate, node, rec):
 
 
 @njit(inline='always')
-def _unknown_at(flat, table, pool, node, i, j, k, by, bz):  # pragma: no cover - compiled
+def unknown_at(flat, table, pool, node, i, j, k, by, bz):  # pragma: no cover - compiled
     """1.0 when the node is in the unknown-space mask (dense ``flat``, else the block-sparse
-    ``table`` and ``pool``), else 0.0."""
+    ``table`` and ``pool``), else 0.0 (both grid kernels' unknown-space charge)."""
     if flat.shape[0] > 0:
         return 1.0 if flat[node] else 0.0
     brick = ((i >> BRICK_BITS) * by + (j >> BRICK_BITS)) * bz + (k >> BRICK_BITS)
@@ -386,7 +386,7 @@ def expand(blocked, mask_table, mask_pool, bricks, slots, node_g, node_int, pare
         k = rest - j * nz
         u_node = 0.0
         if charged:
-            u_node = _unknown_at(unknown, unknown_table, unknown_pool, node, i, j, k, by, bz)
+            u_node = unknown_at(unknown, unknown_table, unknown_pool, node, i, j, k, by, bz)
         fast, inside, kind, base, local_node = node_place(mask_table, bricks, slots, rec_node,
                                                           i, j, k, nx, ny, nz)
         for d in range(26):
@@ -404,7 +404,7 @@ def expand(blocked, mask_table, mask_pool, bricks, slots, node_g, node_int, pare
             g_new = g_node + step_cost[d]
             neighbour = node + delta[d]
             if charged:
-                g_new += (u_node + _unknown_at(
+                g_new += (u_node + unknown_at(
                     unknown, unknown_table, unknown_pool, neighbour, i + directions[d, 0],
                     j + directions[d, 1], k + directions[d, 2], by, bz)) * unknown_step[d]
             at = 4 * rec
