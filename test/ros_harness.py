@@ -61,9 +61,22 @@ STARTUP_TIMEOUT_S = 120.0
 #: First domain id of this run's tests: ``$ROS_DOMAIN_ID`` or None (derived from the pid).
 DOMAIN_BASE = environment_domain_id()
 
-# Every safe id once from the base on, then around again; each call of unique_domain_id()
-# takes the next one that no process on this machine is using.
-_domains = itertools.cycle(list(candidate_domains(DOMAIN_BASE)))
+
+def _worker_share(domains: List[int]) -> List[int]:
+    """The domain ids of this pytest-xdist worker: worker n of N takes the safe ids whose
+    position is n modulo N, so that the test command's workers never start nodes in one
+    domain, not even in the moment between checking an id and a node binding its ports."""
+    worker = os.environ.get('PYTEST_XDIST_WORKER', '')
+    count = int(os.environ.get('PYTEST_XDIST_WORKER_COUNT', '1') or 1)
+    if not worker.startswith('gw') or not worker[2:].isdigit() or count < 2:
+        return domains
+    index = int(worker[2:]) % count
+    return [d for d in domains if SAFE_DOMAIN_IDS.index(d) % count == index]
+
+
+# Every safe id (of this worker) once from the base on, then around again; each call of
+# unique_domain_id() takes the next one that no process on this machine is using.
+_domains = itertools.cycle(_worker_share(list(candidate_domains(DOMAIN_BASE))))
 
 #: Namespace of this test run's planner nodes. Should another test run on this machine draw the
 #: same domain id at the same time, its topics still do not cross ours.
