@@ -184,9 +184,12 @@ def test_a_long_plan_reports_its_stage_on_stderr_and_json_stays_one_object():
         assert 'planning: search after' in run.stderr, run.stderr
     else:
         assert 'planning:' not in run.stderr
-    # The budget covers the grid build too: room for the build, not for the search.
-    limit = 3.0 * result['grid_build_time_s'] + 0.3
-    assert limit < 0.8 * result['total_time_s'], 'the search is too quick to run out'
+    # The budget covers the grid build too: room for the build and half the search, so the
+    # second run times out in its search unless its build or search takes half as long again
+    # or twice as short (the machine's load may change between the runs, not that much).
+    search_s = result['planning_time_s']
+    assert search_s >= 1.0, f'the search ({search_s:.2f} s) is too quick to run out'
+    limit = result['grid_build_time_s'] + 0.5 * search_s
     budget = uav_plan('plan', 'paper_medium', '--resolution', '0.1', '--algorithm', 'dijkstra',
                       '--max-planning-time', f'{limit:.3f}', '--json')
     assert budget.returncode == 1
