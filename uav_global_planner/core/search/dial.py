@@ -33,8 +33,10 @@ chunk of its list and its entry count; ``ends`` the first and last chunk of each
 entries, sorted; ``qstate`` the slots ``Q_*``. Free chunks form a list; the caller grows the
 chunk arrays (:func:`grown`) when the kernel returns ``GROW``.
 
-:func:`node_place` and :func:`neighbour_record` are the neighbour loop of this kernel and of
-the heap kernel of ``grid_search``, inlined into both.
+:func:`node_place` (a node's brick, block-sparse) is inlined into this kernel and the heap
+kernel of ``grid_search``; :func:`neighbour_record` is this kernel's neighbour step. The heap
+kernel writes its neighbour step out: through the inlined function its searches ran 2.3x
+slower at 20 M block-sparse nodes.
 """
 
 from typing import Tuple
@@ -266,14 +268,13 @@ def neighbour_record(blocked, mask_table, mask_pool, bricks, slots, node, i, j, 
 
 @njit(inline='always')
 def node_place(mask_table, bricks, slots, rec_node, i, j, k, nx, ny, nz):
-    """Where the neighbour loop of a node starts (see :func:`neighbour_record`): ``fast``
-    (dense, off the grid's faces), ``inside`` (block-sparse, off its brick's faces), the
-    brick's mask kind, its first record and the node's place in it."""
-    fast = 0 < i < nx - 1 and 0 < j < ny - 1 and 0 < k < nz - 1
+    """Where the neighbour loop of a node starts, block-sparse (``slots`` given): ``inside``
+    when the node is off its brick's faces (its 26 neighbours are in that brick), the brick's
+    mask kind, its first record and the node's place in it (both grid kernels' prelude)."""
     inside = False
     kind = 0
-    base = np.int64(0)
-    local_node = np.int64(0)
+    base = 0
+    local_node = 0
     if slots is not None:
         li = i & _BRICK_MASK
         lj = j & _BRICK_MASK
@@ -285,7 +286,7 @@ def node_place(mask_table, bricks, slots, rec_node, i, j, k, nx, ny, nz):
             base = rec_node - local_node
             kind = mask_table[((i >> BRICK_BITS) * bricks[1] + (j >> BRICK_BITS)) * bricks[2]
                               + (k >> BRICK_BITS)]
-    return fast, inside, kind, base, local_node
+    return inside, kind, base, local_node
 
 
 @njit
@@ -387,8 +388,9 @@ def expand(blocked, mask_table, mask_pool, bricks, slots, node_g, node_int, pare
         u_node = 0.0
         if charged:
             u_node = unknown_at(unknown, unknown_table, unknown_pool, node, i, j, k, by, bz)
-        fast, inside, kind, base, local_node = node_place(mask_table, bricks, slots, rec_node,
-                                                          i, j, k, nx, ny, nz)
+        fast = 0 < i < nx - 1 and 0 < j < ny - 1 and 0 < k < nz - 1
+        inside, kind, base, local_node = node_place(mask_table, bricks, slots, rec_node, i, j, k,
+                                                    nx, ny, nz)
         for d in range(26):
             if slots is None and fast:
                 rec = node + delta[d]

@@ -469,23 +469,9 @@ def _expand(blocked, mask_table, mask_pool, bricks, slots, node_g, node_int, par
         if charged:
             u_node = dial.unknown_at(unknown, unknown_table, unknown_pool, node, i, j, k, by, bz)
         # Block-sparse: a node inside its brick (off its faces) has its 26 neighbours in the
-        # same brick, whose mask and records are looked up once. (Dial's kernel has the same
-        # prelude in dial.node_place; called here, inlined, the A* searches ran 5-20 % slower.)
-        inside = False
-        base = 0
-        kind_node = 0
-        local_node = 0
-        if heap_rec is not None:
-            li = i & _BRICK_MASK
-            lj = j & _BRICK_MASK
-            lk = k & _BRICK_MASK
-            inside = (0 < li < _BRICK_MASK and 0 < lj < _BRICK_MASK and 0 < lk < _BRICK_MASK
-                      and i + 1 < nx and j + 1 < ny and k + 1 < nz)
-            if inside:
-                local_node = (li * BRICK + lj) * BRICK + lk
-                base = rec_node - local_node
-                kind_node = mask_table[((i >> BRICK_BITS) * by + (j >> BRICK_BITS)) * bz
-                                       + (k >> BRICK_BITS)]
+        # same brick, whose mask and records are looked up once (dense: ``slots`` None).
+        inside, kind_node, base, local_node = dial.node_place(mask_table, bricks, slots,
+                                                              rec_node, i, j, k, nx, ny, nz)
         for d in range(26):
             ni = i + directions[d, 0]
             nj = j + directions[d, 1]
