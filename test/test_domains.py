@@ -55,9 +55,20 @@ def test_ros_domain_id_is_the_first_domain_of_the_tests():
     expected = [d for d in candidate_domains(base) if not domain_in_use(d)][:2]
     code = ('import ros_harness\n'
             'print(ros_harness.unique_domain_id(), ros_harness.unique_domain_id())\n')
-    env = dict(os.environ, ROS_DOMAIN_ID=str(base))
+    # A test run of its own, not a worker of this one (the test command's workers split the ids).
+    env = {key: value for key, value in os.environ.items()
+           if not key.startswith('PYTEST_XDIST_')}
+    env['ROS_DOMAIN_ID'] = str(base)
     run = subprocess.run([sys.executable, '-c', code], cwd=HERE, env=env, capture_output=True,
                          text=True, timeout=60)
     assert run.returncode == 0, run.stderr
     assert [int(v) for v in run.stdout.split()] == expected
     assert expected[0] == base
+    # Worker gw1 of 2 takes only the ids at odd positions of the safe list, gw0 the even ones.
+    for worker, parity in (('gw0', 0), ('gw1', 1)):
+        split = dict(env, PYTEST_XDIST_WORKER=worker, PYTEST_XDIST_WORKER_COUNT='2')
+        run = subprocess.run([sys.executable, '-c', code], cwd=HERE, env=split,
+                             capture_output=True, text=True, timeout=60)
+        assert run.returncode == 0, run.stderr
+        taken = [int(v) for v in run.stdout.split()]
+        assert [SAFE_DOMAIN_IDS.index(d) % 2 for d in taken] == [parity, parity], taken
