@@ -197,6 +197,37 @@ def test_a_plan_that_cannot_continue_the_odometry_is_planned_again():
     assert not settled.problem and not settled.retry
 
 
+def test_a_plan_from_rest_is_planned_again_once_the_vehicle_moves():
+    """A vehicle at rest when a replan starts may take up the plan in force meanwhile: the
+    plan from where it stood is then behind it, and a follower taking it up would step back.
+    Newer odometry that shows it moving sends the plan back for a takeover of its motion."""
+    clock = Clock()
+    predictor = TakeoverPredictor(clock)
+    start = np.array([0.0, 0.0, 2.0])
+    plan = in_force(accelerating(), clock())
+    predictor.on_odometry(start, np.zeros(3), 0.0)
+    takeover = predictor.predict(start, StartSource.ODOM, plan)
+    assert takeover.kind is TakeoverKind.REST
+    t = np.linspace(0.0, 3.0, 301)
+    from_rest = Trajectory(times=t, positions=start + 0.5 * np.outer(t ** 2, ACCEL),
+                           velocities=np.outer(t, ACCEL), accelerations=np.tile(ACCEL, (301, 1)))
+    # Still at rest (or no newer odometry) when the plan is ready: published as it is.
+    clock.advance(0.3)
+    assert predictor.settle(takeover, from_rest, plan, start, 2.0).problem == ''
+    predictor.on_odometry(start, np.array([0.01, 0.0, 0.0]), 0.0)
+    assert predictor.settle(takeover, from_rest, plan, start, 2.0).problem == ''
+    # Flying the plan in force by then: planned again, and the new prediction continues it.
+    clock.advance(0.1)
+    moved = flying(clock, plan, predictor)
+    settled = predictor.settle(takeover, from_rest, plan, moved, 2.0)
+    assert settled.retry and 'started moving' in settled.problem
+    assert predictor.predict(moved, StartSource.ODOM, plan).kind is TakeoverKind.PLAN_IN_FORCE
+    # A start that is no vehicle (a request's start, the parameter) is not the vehicle's.
+    requested = predictor.predict(start, StartSource.PARAMETER, plan)
+    assert requested.kind is TakeoverKind.REST
+    assert not predictor.settle(requested, from_rest, plan, moved, 2.0).retry
+
+
 def test_plan_arguments_follow_the_planner_signature():
     clock = Clock()
     predictor = TakeoverPredictor(clock)

@@ -368,18 +368,8 @@ class PlanningWorker:
                     self._discard(snap, goal, newest.version, newest_stamp_ns)
                     return
                 checked = (newest.version, newest_stamp_ns)
-            if result.ok and takeover.moving:
-                settlement = in_force.settle_takeover(takeover, result)
-                if settlement.problem and settlement.retry and goal_current:
-                    if self._drift_replans < _MAX_DRIFT_REPLANS:
-                        self._drift_replans += 1
-                        self._retake(snap, goal, settlement)
-                        return
-                    settlement = replace(settlement, problem=(
-                        f'{settlement.problem} ({_MAX_DRIFT_REPLANS} replans in a row); '
-                        'published'))
-            elif (result.ok and vehicle is not None
-                  and snap.start_source != StartSource.PARAMETER):
+            if (result.ok and not takeover.moving and vehicle is not None
+                    and snap.start_source != StartSource.PARAMETER):
                 moved = float(np.linalg.norm(vehicle - snap.start))
                 limit = settings.start_replan_distance
                 if limit > 0.0 and moved > limit and goal_current:
@@ -389,8 +379,18 @@ class PlanningWorker:
                         return
                     drift_note = (f'the vehicle moved {moved:.2f} m from the start while '
                                   f'planning ({_MAX_DRIFT_REPLANS} replans in a row); published')
-            if result.ok and settlement is None:
-                settlement = in_force.settle_takeover(takeover, result)  # records the latency
+            if result.ok:
+                # Also from rest: it measures the latency, and a vehicle that started moving
+                # meanwhile (flying the plan in force) is planned for again from its motion.
+                settlement = in_force.settle_takeover(takeover, result)
+                if settlement.problem and settlement.retry and goal_current:
+                    if self._drift_replans < _MAX_DRIFT_REPLANS:
+                        self._drift_replans += 1
+                        self._retake(snap, goal, settlement)
+                        return
+                    settlement = replace(settlement, problem=(
+                        f'{settlement.problem} ({_MAX_DRIFT_REPLANS} replans in a row); '
+                        'published'))
             stamp_ns = (settlement.stamp_ns if settlement is not None
                         else self._node.get_clock().now().nanoseconds)
             self._last_result, self._last_goal_serial = result, goal.serial

@@ -158,7 +158,8 @@ class Takeover:
     in_force : InForce or None
         The plan continued (``plan_in_force`` only).
     odometry : OdometryMotion or None
-        The odometry extrapolated (``odometry`` only).
+        The odometry extrapolated (``odometry``), or the odometry that showed the vehicle at
+        rest (``rest`` from the vehicle's position).
     path : numpy.ndarray or None, shape (N, 3)
         The plan in force's reference positions after ``t_k`` [m] (``plan_in_force`` only):
         the new curve follows them for its lead-in.
@@ -376,7 +377,7 @@ class TakeoverPredictor:
             return Takeover(TakeoverKind.ODOMETRY, now, stamp, position, velocity.copy(),
                             np.zeros(3), odometry.yaw, latency, odometry=odometry)
         return Takeover(TakeoverKind.REST, now, now, np.asarray(start, dtype=np.float64),
-                        yaw=odometry.yaw)
+                        yaw=odometry.yaw, odometry=odometry)
 
     def settle(self, takeover: Takeover, trajectory: Optional[Trajectory],
                in_force_now: Optional[InForce], vehicle: Optional[np.ndarray],
@@ -398,6 +399,13 @@ class TakeoverPredictor:
         now = self._clock_ns()
         self.record_latency((now - takeover.predicted_ns) / _NS)
         if not takeover.moving or trajectory is None:
+            started = self._started_since(takeover) if trajectory is not None else None
+            if started is not None:
+                # A plan from where the vehicle stood is behind it once it flies (the plan in
+                # force it just took up): a follower would step back to the start.
+                return Settlement(now, None, (
+                    f'the vehicle started moving ({started:.2f} m/s) while a plan from rest at '
+                    f'{np.round(takeover.position, 3).tolist()} was computed'), retry=True)
             return Settlement(now)
         switch = max(now, takeover.stamp_ns)
         flown = takeover.flown_at(switch)
@@ -434,6 +442,20 @@ class TakeoverPredictor:
             return Settlement(takeover.stamp_ns, jump, problem + '; planned again from the '
                               'newest odometry', retry=True)
         return Settlement(takeover.stamp_ns, jump, problem)
+
+    def _started_since(self, takeover: Takeover) -> Optional[float]:
+        """The vehicle's speed [m/s] when odometry newer than that which showed it at rest
+        for ``takeover`` (a start from rest at the vehicle) shows it moving; else None."""
+        at_rest = takeover.odometry
+        if takeover.kind is not TakeoverKind.REST or at_rest is None:
+            return None
+        with self._lock:
+            odometry = self._odometry
+        if (odometry is None or odometry.received_ns <= at_rest.received_ns
+                or odometry.velocity is None):
+            return None
+        speed = float(np.linalg.norm(odometry.velocity))
+        return speed if speed >= HANDOVER_MIN_SPEED else None
 
 
 #: How far ahead the plan in force's reference is handed to the planner, and how densely
