@@ -97,15 +97,16 @@ GAUSS = {5: np.polynomial.legendre.leggauss(5)}
 class Pieces:
     """Chain of cubic pieces ``p(tau) = c0 tau^3 + c1 tau^2 + c2 tau + c3``, ``tau in [0, h]``.
 
-    The coefficients are those of a :class:`~scipy.interpolate.PPoly` (``CubicSpline.c``), but the
-    engine evaluates them by piece and local parameter, not by a PPoly's global parameter: the
-    bend bound of an interval needs ``|c''|`` of *its own* piece at both ends, and at a shared
-    end a PPoly would give the next piece's (one-sided values decide the certificate there).
+    The coefficients are those of a
+    :class:`~uav_global_planner.core.path.piecewise.PiecewisePolynomial`, but the engine
+    evaluates them by piece and local parameter, not by the chain's global parameter: the bend
+    bound of an interval needs ``|c''|`` of *its own* piece at both ends, and at a shared end
+    the chain would give the next piece's (one-sided values decide the certificate there).
 
     Attributes
     ----------
     coef : numpy.ndarray, shape (4, P, 3)
-        Coefficients, highest power first (the layout of ``CubicSpline.c``) [m / unit^k].
+        Coefficients, highest power first [m / unit^k].
     h : numpy.ndarray, shape (P,)
         Parameter length of each piece [parameter units].
     """

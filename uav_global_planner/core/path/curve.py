@@ -11,9 +11,9 @@ import math
 from typing import List, Tuple
 
 import numpy as np
-from scipy.interpolate import PPoly
 
 from uav_global_planner.core.path.clearance import Pieces, SampleGrid
+from uav_global_planner.core.path.piecewise import PiecewisePolynomial
 from uav_global_planner.core.path.repair import Chain
 
 # Output samples closer than this to a via-point are dropped in its favour [m].
@@ -25,7 +25,8 @@ class PathCurve:
 
     An arc length is turned into a piece and a parameter on it (Newton steps on the same
     Gauss-Legendre arc lengths that label the samples); the point and its derivatives are then
-    those of the chain as one :class:`~scipy.interpolate.PPoly` over the cumulative parameter.
+    those of the chain as one :class:`~uav_global_planner.core.path.piecewise.PiecewisePolynomial`
+    over the cumulative parameter.
 
     Attributes
     ----------
@@ -44,7 +45,7 @@ class PathCurve:
                  piece_start_m: np.ndarray, stop_arc_length_m: np.ndarray) -> None:
         self._pieces = pieces
         self._breaks = np.r_[0.0, np.cumsum(pieces.h)]
-        self._chain = PPoly.construct_fast(pieces.coef, self._breaks)
+        self._chain = PiecewisePolynomial(pieces.coef, self._breaks)
         self._iv = (iv_piece, iv_ta, iv_tb, iv_sa, iv_sb)
         self.piece_start_m = piece_start_m
         self.length_m = float(piece_start_m[-1])

@@ -25,9 +25,9 @@ from dataclasses import dataclass
 from typing import Tuple
 
 import numpy as np
-from scipy.interpolate import PPoly
 
 from uav_global_planner.core.path.curve import PathCurve
+from uav_global_planner.core.path.piecewise import PiecewisePolynomial
 from uav_global_planner.core.path.yaw import YawProfile
 from uav_global_planner.core.result import ReferenceState
 
@@ -38,9 +38,9 @@ class ArcProfile:
 
     Attributes
     ----------
-    base : scipy.interpolate.PPoly
+    base : PiecewisePolynomial
         ``s0(t)`` [m], quadratic pieces from ``t = -window_s`` on, constant after its end.
-    integral : scipy.interpolate.PPoly
+    integral : PiecewisePolynomial
         Its antiderivative [m s].
     window_s : float
         The averaging window tau [s], > 0.
@@ -50,8 +50,8 @@ class ArcProfile:
         Arc length of the curve [m].
     """
 
-    base: PPoly
-    integral: PPoly
+    base: PiecewisePolynomial
+    integral: PiecewisePolynomial
     window_s: float
     duration_s: float
     length_m: float
@@ -142,6 +142,6 @@ def profile_from_pieces(start_times: np.ndarray, positions: np.ndarray, speeds: 
     coef[1, :-1] = speeds
     coef[2, :-1] = positions
     coef[2, -1] = length_m
-    base = PPoly(coef, breaks, extrapolate=True)
+    base = PiecewisePolynomial(coef, breaks)
     return ArcProfile(base=base, integral=base.antiderivative(), window_s=float(window_s),
                       duration_s=float(end_time + window_s), length_m=float(length_m))

@@ -3,7 +3,8 @@
 The third step of :mod:`uav_global_planner.core.path.smoothing`. The curve is described by a
 :class:`Layout` over the shortcut polyline: knots named by their polyline arc length sigma, and
 for each polyline gap whether the spline covers it or it is drawn straight. :func:`build_chain`
-fits one C2 not-a-knot :class:`~scipy.interpolate.CubicSpline` per run of spline gaps and one
+fits one C2 not-a-knot cubic spline
+(:func:`~uav_global_planner.core.path.piecewise.cubic_spline`) per run of spline gaps and one
 straight piece per straight gap (the run at the start of a curve that continues a motion is
 clamped to the given tangent and curvature instead, :func:`start_spline`);
 :func:`check_chain` certifies the clearance of every piece
@@ -17,13 +18,14 @@ import math
 from typing import Any, Callable, Dict, List, NamedTuple, Optional, Tuple
 
 import numpy as np
-from scipy.interpolate import CubicSpline, PPoly
 
 from uav_global_planner.core.errors import NoValidPathError
 from uav_global_planner.core.map.grid import HALF_CELL_DIAGONAL
 from uav_global_planner.core.map.obstacles import ObstacleSet
 from uav_global_planner.core.path.clearance import (Certificate, certificate_cap, certify_pieces,
                                                     Pieces, SampleGrid)
+from uav_global_planner.core.path.piecewise import (cubic_spline, PiecewisePolynomial,
+                                                    stationary_points)
 from uav_global_planner.core.result import RepairMethod
 
 #: Default largest knot spacing of ``'chord'`` splines along the shortcut polyline: this many
@@ -147,7 +149,7 @@ def build_chain(layout: Layout, mode: str) -> Chain:
                 tangent, curvature = layout.start
                 coefs.append(start_spline(t, points, speed * tangent, speed ** 2 * curvature))
             else:
-                coefs.append(CubicSpline(t, points, bc_type='not-a-knot').c)
+                coefs.append(cubic_spline(t, points))
             pieces = len(knots) - 1
             hs.append(np.diff(t))
             sigs.append(np.stack([knots[:-1], knots[1:]], axis=1))
@@ -190,7 +192,7 @@ def start_spline(t: np.ndarray, points: np.ndarray, first: np.ndarray,
     Returns
     -------
     numpy.ndarray, shape (4, n - 1, 3)
-        Coefficients in the layout of ``CubicSpline.c`` (highest power first).
+        Coefficients, highest power first.
     """
     origin = points[0]
     local = points - origin    # fitted near the origin: no rounding from large coordinates
@@ -204,14 +206,11 @@ def start_spline(t: np.ndarray, points: np.ndarray, first: np.ndarray,
         return coef
     unit = np.zeros(len(t))
     unit[1] = 1.0
-    still: Any = ((1, np.zeros(())), 'not-a-knot')
-    clamped: Any = ((1, first), 'not-a-knot')
-    weight = 2.0 * CubicSpline(t, unit, bc_type=still).c[1, 0]
+    weight = 2.0 * cubic_spline(t, unit, start_derivative=np.zeros(()))[1, 0]
     local = local.copy()
     for _ in range(2):
-        spline = CubicSpline(t, local, bc_type=clamped)
-        local[1] += (second - 2.0 * spline.c[1, 0]) / weight
-    coef = CubicSpline(t, local, bc_type=clamped).c.copy()
+        local[1] += (second - 2.0 * cubic_spline(t, local, first)[1, 0]) / weight
+    coef = cubic_spline(t, local, first)
     coef[3] += origin
     return coef
 
@@ -219,24 +218,19 @@ def start_spline(t: np.ndarray, points: np.ndarray, first: np.ndarray,
 def _bounds_violations(pieces: Pieces, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     """Pieces leaving the box [lo, hi], found exactly from the extrema of each cubic.
 
-    The chain is one :class:`~scipy.interpolate.PPoly` over the cumulative parameter; each
-    piece's extrema per axis are its end values and its values at the stationary points scipy
-    finds (``derivative().roots()``, with the cancellation-free quadratic formula: the
-    stationary point of a not-a-knot parabola, whose cubic coefficient is rounding noise, is
-    found). The chain is continuous, so a piece's end value is the next piece's start value (to
-    rounding, far below the tolerance).
+    The chain is one :class:`~uav_global_planner.core.path.piecewise.PiecewisePolynomial` over
+    the cumulative parameter; each piece's extrema per axis are its end values and its values at
+    its stationary points (:func:`~uav_global_planner.core.path.piecewise.stationary_points`,
+    with the cancellation-free quadratic formula: the stationary point of a not-a-knot
+    parabola, whose cubic coefficient is rounding noise, is found). The chain is continuous, so
+    a piece's end value is the next piece's start value (to rounding, far below the tolerance).
     """
     breaks = np.r_[0.0, np.cumsum(pieces.h)]
-    chain = PPoly.construct_fast(pieces.coef, breaks)
+    chain = PiecewisePolynomial(pieces.coef, breaks)
     at_breaks = chain(breaks)
     lows = np.minimum(at_breaks[:-1], at_breaks[1:])
     highs = np.maximum(at_breaks[:-1], at_breaks[1:])
-    stationary = chain.derivative().roots(discontinuity=False, extrapolate=False)
-    axes = np.concatenate([np.full(len(roots), axis) for axis, roots in enumerate(stationary)])
-    roots = np.concatenate(list(stationary))
-    # An axis constant on a piece gives its start and a NaN; the start is a break already.
-    finite = np.isfinite(roots)
-    axes, roots = axes[finite], roots[finite]
+    roots, axes = stationary_points(pieces.coef, breaks)
     if len(roots):
         piece = np.clip(np.searchsorted(breaks, roots, side='right') - 1, 0, len(pieces) - 1)
         values = chain(roots)[np.arange(len(roots)), axes]

@@ -8,8 +8,9 @@ it into a curve a quadcopter can fly, in three steps:
    Where not even the next node is visible (the raw edge dips below gamma, see below), a detour
    vertex pushed off the obstacle is inserted if its two segments certify. The result is the
    *shortcut polyline*.
-2. **Smoothing**: a C2 cubic spline (:class:`scipy.interpolate.CubicSpline`, not-a-knot ends like
-   MATLAB's ``spline``) through the polyline vertices, passing exactly through start and goal. In
+2. **Smoothing**: a C2 cubic spline
+   (:func:`~uav_global_planner.core.path.piecewise.cubic_spline`, not-a-knot ends like MATLAB's
+   ``spline``) through the polyline vertices, passing exactly through start and goal. In
    ``'chord'`` mode extra knots are placed on the polyline segments, at most ``knot_spacing``
    (default max(2 delta, 1 m)) apart, so the spline hugs the certified polyline and rounds its
    corners; a spline through a few far-apart vertices bulges out (longer and less safe).

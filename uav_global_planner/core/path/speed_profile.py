@@ -16,9 +16,9 @@ import math
 from typing import List, Optional, Tuple
 
 import numpy as np
-from scipy.interpolate import PPoly
 
 from uav_global_planner.core.jit import njit
+from uav_global_planner.core.path.piecewise import PiecewisePolynomial
 from uav_global_planner.core.path.reach import MinTable
 from uav_global_planner.core.path.reference import ArcProfile, profile_from_pieces
 
@@ -314,7 +314,7 @@ def arc_at(profile: ArcProfile, t: np.ndarray) -> np.ndarray:
     return out
 
 
-def _coefficients(poly: PPoly) -> Tuple[np.ndarray, np.ndarray]:
+def _coefficients(poly: PiecewisePolynomial) -> Tuple[np.ndarray, np.ndarray]:
     """Coefficients (order, pieces) and breaks of a 1-D piecewise polynomial, contiguous."""
     return (np.ascontiguousarray(poly.c, dtype=np.float64),
             np.ascontiguousarray(poly.x, dtype=np.float64))
@@ -331,8 +331,8 @@ def speed_at(profile: ArcProfile, t: np.ndarray) -> np.ndarray:
 
 @njit
 def _ppoly_at(c, x, t):  # pragma: no cover - compiled
-    """A 1-D ``scipy.interpolate.PPoly`` (coefficients ``c``, breaks ``x``, extrapolating)
-    at ``t``, term by term as scipy sums it."""
+    """A 1-D :class:`~uav_global_planner.core.path.piecewise.PiecewisePolynomial`
+    (coefficients ``c``, breaks ``x``, extrapolating) at ``t``, term by term as it sums."""
     last = x.shape[0] - 2
     i = np.searchsorted(x, t, side='right') - 1
     i = min(max(i, 0), last)
