@@ -112,6 +112,10 @@ _ONE_OFF = _CompileClock()
 _LOCK = threading.RLock()
 
 
+#: What numba's array functions import to find a BLAS for np.dot.
+_BLAS = 'scipy.linalg.cython_blas'
+
+
 def _import_numba() -> Optional[ModuleType]:
     """numba, imported on first use with its cache folder and the compile clocks set (None
     without the JIT, or when numba fails to import: the kernels then run as Python)."""
@@ -120,20 +124,24 @@ def _import_numba() -> Optional[ModuleType]:
         if numba is not None or not JIT_ENABLED:
             return numba
         # numba imports coverage (0.1-0.3 s) to report compiled lines to a running measurement;
-        # one runs only when coverage was imported already.
-        hide_coverage = 'coverage' not in sys.modules
-        if hide_coverage:
-            sys.modules['coverage'] = None  # type: ignore[assignment]
+        # one runs only when coverage was imported already. Its array functions import
+        # scipy.linalg (0.2-0.3 s) only to see whether np.dot may call BLAS, which no kernel
+        # here does (without it, np.dot would be a plain loop).
+        hidden = [name for name in ('coverage', _BLAS) if name not in sys.modules]
+        for name in hidden:
+            sys.modules[name] = None  # type: ignore[assignment]
         try:
             import numba as module
             from numba.core import event
             from numba.extending import typeof_impl
+            import numba.np.arraymath  # noqa: F401 - imported here, with scipy.linalg hidden
         except ImportError:
             JIT_ENABLED = False
             return None
         finally:
-            if hide_coverage and sys.modules.get('coverage', 0) is None:
-                del sys.modules['coverage']
+            for name in hidden:
+                if sys.modules.get(name, 0) is None:
+                    del sys.modules[name]
         config: Any = module.config
         if not config.CACHE_DIR:
             # numba was imported before this module, without NUMBA_CACHE_DIR.
