@@ -34,11 +34,9 @@ entries, sorted; ``qstate`` the slots ``Q_*``. Free chunks form a list; the call
 chunk arrays (:func:`grown`) when the kernel returns ``GROW``.
 
 :func:`node_place` (a node's brick, block-sparse) is inlined into this kernel and the heap
-kernel of ``grid_search``. Both kernels write their neighbour step out (the bounds, the mask
-and, block-sparse, the brick's record slot), though it is the same in both: through a shared
-inlined function the heap kernel's searches ran 2.3x slower at 20 M block-sparse nodes and
-this kernel's 6x (39 s against 6.4 s for ``dijkstra``; a function for the brick lookup alone
-still 2x), through plain compiled calls 3x.
+kernel of ``grid_search``; :func:`neighbour_record` is this kernel's neighbour step. The heap
+kernel writes its neighbour step out: through the inlined function its searches ran 2.3x
+slower at 20 M block-sparse nodes.
 """
 
 from typing import Tuple
@@ -219,6 +217,56 @@ def unknown_at(flat, table, pool, node, i, j, k, by, bz):  # pragma: no cover - 
 
 
 @njit(inline='always')
+def neighbour_record(blocked, mask_table, mask_pool, bricks, slots, node, i, j, k, nx, ny, nz,
+                     d, directions, brick_step, delta, inside, fast, kind, base, local_node,
+                     used):
+    """Record number of neighbour ``d`` of ``node`` (i, j, k), or -1 when it is outside the
+    grid or blocked; and the brick slots in use (a new slot when its brick is first reached).
+
+    The neighbour loop of the grid kernels (:mod:`uav_global_planner.core.search.grid_search`
+    and this one), inlined into each. Dense (``slots`` None): ``fast`` when ``node`` is off the
+    grid's faces (no bounds to check). Block-sparse: ``inside`` when it is off its brick's
+    faces, its brick of kind ``kind`` (mask) at record ``base``, ``local_node`` its place in
+    it; otherwise the neighbour's brick is looked up.
+    """
+    if slots is None:
+        neighbour = node + delta[d]
+        if not fast:
+            ni = i + directions[d, 0]
+            nj = j + directions[d, 1]
+            nk = k + directions[d, 2]
+            if ni < 0 or ni >= nx or nj < 0 or nj >= ny or nk < 0 or nk >= nz:
+                return np.int64(-1), used
+        if blocked[neighbour]:
+            return np.int64(-1), used
+        return np.int64(neighbour), used
+    if inside:
+        local = local_node + brick_step[d]
+        if kind >= 0 and mask_pool[kind, local]:
+            return np.int64(-1), used
+        return np.int64(base + local), used
+    ni = i + directions[d, 0]
+    nj = j + directions[d, 1]
+    nk = k + directions[d, 2]
+    if ni < 0 or ni >= nx or nj < 0 or nj >= ny or nk < 0 or nk >= nz:
+        return np.int64(-1), used
+    brick = ((ni >> BRICK_BITS) * bricks[1] + (nj >> BRICK_BITS)) * bricks[2] + (
+        nk >> BRICK_BITS)
+    local = (((ni & _BRICK_MASK) * BRICK) + (nj & _BRICK_MASK)) * BRICK + (nk & _BRICK_MASK)
+    kind_n = mask_table[brick]
+    if kind_n == FULL:
+        return np.int64(-1), used
+    if kind_n >= 0 and mask_pool[kind_n, local]:
+        return np.int64(-1), used
+    slot = np.int64(slots[brick])
+    if slot < 0:
+        slot = used
+        used += 1
+        slots[brick] = slot
+    return slot * BRICK_NODES + local, used
+
+
+@njit(inline='always')
 def node_place(mask_table, bricks, slots, rec_node, i, j, k, nx, ny, nz):
     """Where the neighbour loop of a node starts, block-sparse (``slots`` given): ``inside``
     when the node is off its brick's faces (its 26 neighbours are in that brick), the brick's
@@ -344,42 +392,19 @@ def expand(blocked, mask_table, mask_pool, bricks, slots, node_g, node_int, pare
         inside, kind, base, local_node = node_place(mask_table, bricks, slots, rec_node, i, j, k,
                                                     nx, ny, nz)
         for d in range(26):
-            # Written out, as in the heap kernel: through an inlined function this step made
-            # the block-sparse search 6x slower (module notes).
-            neighbour = node + delta[d]
-            rec = neighbour
             if slots is None and fast:
+                rec = node + delta[d]
                 if blocked[rec]:
                     continue
-            elif inside:
-                local = local_node + brick_step[d]
-                if kind >= 0 and mask_pool[kind, local]:
-                    continue
-                rec = base + local
             else:
-                ni = i + directions[d, 0]
-                nj = j + directions[d, 1]
-                nk = k + directions[d, 2]
-                if ni < 0 or ni >= nx or nj < 0 or nj >= ny or nk < 0 or nk >= nz:
+                rec, used = neighbour_record(blocked, mask_table, mask_pool, bricks, slots,
+                                             node, i, j, k, nx, ny, nz, d, directions,
+                                             brick_step, delta, inside, fast, kind, base,
+                                             local_node, used)
+                if rec < 0:
                     continue
-                if slots is None:
-                    if blocked[neighbour]:
-                        continue
-                else:
-                    brick = ((ni >> BRICK_BITS) * by + (nj >> BRICK_BITS)) * bz + (
-                        nk >> BRICK_BITS)
-                    local = (((ni & _BRICK_MASK) * BRICK) + (nj & _BRICK_MASK)) * BRICK + (
-                        nk & _BRICK_MASK)
-                    brick_kind = mask_table[brick]
-                    if brick_kind == FULL or (brick_kind >= 0 and mask_pool[brick_kind, local]):
-                        continue
-                    slot = np.int64(slots[brick])
-                    if slot < 0:
-                        slot = used
-                        used += 1
-                        slots[brick] = slot
-                    rec = slot * BRICK_NODES + local
             g_new = g_node + step_cost[d]
+            neighbour = node + delta[d]
             if charged:
                 g_new += (u_node + unknown_at(
                     unknown, unknown_table, unknown_pool, neighbour, i + directions[d, 0],
