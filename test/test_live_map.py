@@ -5,6 +5,7 @@ Every incremental answer is checked against the plain computation it replaces: d
 against scipy's KD-tree, masks against a full :func:`blocked_mask` of the same obstacles.
 """
 
+import json
 import math
 import os
 from pathlib import Path
@@ -378,3 +379,47 @@ def test_a_plan_is_certified_ahead_of_the_vehicle_first() -> None:
     # Behind the vehicle: no longer in the way.
     behind = ObstacleSet([Sphere(samples[5], 0.2)])
     assert certify_plan(result, behind, 0.7, 0.5, samples[len(samples) // 2]).clear
+
+
+# A process that builds a map, changes it (a box dropped, a new cloud) and certifies a plan
+# against the change from a position, as the node does when an obstacle arrives; prints the
+# kernels compiled or loaded by the change and the check (argv[1]: '1' warms up first).
+_FIRST_CHANGE = """
+import json, sys
+import numpy as np
+from uav_global_planner.core import jit
+from uav_global_planner.core.config import PlannerConfig
+from uav_global_planner.core.map.live_map import LiveMapBuilder, warm_up_changes
+from uav_global_planner.core.map.obstacles import Box, ObstacleSet
+from uav_global_planner.core.planner import certify_plan, Planner
+config = PlannerConfig(bounds_min=(0.0, 0.0, 0.0), bounds_max=(20.0, 20.0, 10.0),
+                       resolution=0.25, safety_margin=0.3)
+wall = Box([9.0, 0.0, 0.0], [10.0, 14.0, 10.0])
+result = Planner(config, ObstacleSet([wall])).plan([2.0, 2.0, 3.0], [18.0, 2.0, 3.0])
+if sys.argv[1] == '1':
+    warm_up_changes(config)
+builder = LiveMapBuilder(config)
+builder.update({'wall': wall})
+before = sum(jit.kernel_counts())
+dropped = Box([10.0, 6.0, 0.0], [20.0, 7.0, 10.0])  # across the way to the goal
+live = builder.update({'wall': wall, 'dropped': dropped}, cloud=np.array([[5.0, 18.0, 5.0]]))
+verdict = certify_plan(result, live.obstacles, result.planning_margin, result.resolution,
+                       result.path[0], ahead_m=30.0)
+print(json.dumps({'ok': result.ok, 'clear': verdict.clear,
+                  'kernels': sum(jit.kernel_counts()) - before}))
+"""
+
+
+@pytest.mark.parametrize('warm', [False, True])
+def test_after_the_warm_up_a_first_map_change_loads_no_kernel(warm: bool) -> None:
+    """The node loads the kernels of a map change at start-up: the first obstacle that blocks
+    the plan in force is then checked, and the plan withdrawn, without waiting for them."""
+    run = subprocess.run([sys.executable, '-c', _FIRST_CHANGE, '1' if warm else '0'],
+                         capture_output=True, text=True, timeout=900, env=dict(os.environ))
+    assert run.returncode == 0, run.stderr[-3000:]
+    outcome = json.loads(run.stdout.strip().splitlines()[-1])
+    assert outcome['ok'] and not outcome['clear']  # the dropped box blocks the plan
+    if warm:
+        assert outcome['kernels'] == 0
+    else:
+        assert outcome['kernels'] > 0

@@ -22,7 +22,7 @@ from rclpy.node import Node
 from uav_global_planner.core.budget import PlanStage
 from uav_global_planner.core.config import PlannerConfig
 from uav_global_planner.core.errors import InvalidInputError
-from uav_global_planner.core.map.live_map import LiveMap
+from uav_global_planner.core.map.live_map import LiveMap, warm_up_changes
 from uav_global_planner.core.map.unknown_space import unknown_from_map_files, UnknownSpace
 from uav_global_planner.core.planner import ClearanceVerdict, Planner
 from uav_global_planner.core.result import PlanResult
@@ -109,13 +109,19 @@ class PlanningWorker:
                                         daemon=True)
 
     def start(self) -> None:
-        """Give the planner the map at start-up, compile the kernels and build the grid, then
-        start the worker thread."""
+        """Give the planner the map at start-up, compile the kernels and build the grid (and
+        load those of a map change, which the first new obstacle would otherwise wait for),
+        then start the worker thread."""
         live = self._inputs.newest_map()
         self._grid_from_map = self._planner.set_map(live.obstacles, live.blocked,
                                                     live.grid_key)
         self._applied_map = live
         self._planner.warm_up()
+        try:
+            warm_up_changes(self._inputs.current_settings().config)
+        except Exception as error:  # noqa: B902 - a warm-up only saves time later; never fatal
+            self._log.warning(f'could not load the kernels of a map change ahead ({error}); '
+                              'the first one loads them')
         self._thread.start()
 
     def stop(self, timeout_s: float) -> None:

@@ -22,7 +22,7 @@ The pieces
     inflated mask and what the update cost.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 import math
 import time
 from typing import Any, Dict, Hashable, Iterable, List, Mapping, Optional, Sequence, Tuple
@@ -36,9 +36,10 @@ from uav_global_planner.core.map.inflation import Mask
 from uav_global_planner.core.map.mask_buffers import MaskBuffers, MaskUpdate
 from uav_global_planner.core.map.obstacles import Box, Obstacle, ObstacleSet, PointSet, Sphere
 from uav_global_planner.core.map.point_cells import changed_cells, PointCells
+from uav_global_planner.core.map.sparse_grid import choose_layout, SPARSE_MIN_NODES
 from uav_global_planner.core.map.terrain import HeightField
 from uav_global_planner.core.map.tiles import cell_tiles, shape_tiles
-from uav_global_planner.core.planner import fallback_margin
+from uav_global_planner.core.planner import certify_plan, fallback_margin, Planner
 
 
 class LiveObstacles(ObstacleSet):
@@ -326,3 +327,43 @@ def _changed_tiles(buffers: MaskBuffers, shapes: Sequence[Obstacle],
     for changed in cells:
         parts.append(cell_tiles(changed, buffers.geometry, buffers.reach))
     return np.unique(np.concatenate(parts)) if parts else np.empty(0, dtype=np.int64)
+
+
+def warm_up_changes(config: PlannerConfig) -> None:
+    """Load the kernels of a map change before the first real one needs them.
+
+    The first change of a map (a shape added or moved, a new cloud) re-inflates only the tiles
+    it touched, through kernels the first build does not call, and the plan in force is
+    certified against it from the vehicle's position on; loading those kernels from the cache
+    takes 10-60 ms each (and compiling them, on a new install, seconds), all of it in the time
+    between an obstacle's arrival and the withdrawal of a plan it blocks. This applies such
+    changes to a throwaway map of the layout ``config``'s grid has (dense, or a large empty
+    block-sparse one), at ``config``'s resolution and margin, and certifies a short plan on it
+    from its start, as the node does.
+
+    Parameters
+    ----------
+    config : PlannerConfig
+        The node's settings (only its grid's layout, resolution and margin are used).
+    """
+    delta = config.resolution
+    grid = VoxelGrid.from_bounds(config.bounds_min, config.bounds_max, delta, config.max_voxels)
+    side = 12
+    if choose_layout(grid.size) == 'sparse':
+        side = int(math.ceil(SPARSE_MIN_NODES ** (1.0 / 3.0))) + 1
+    extent = (side - 1) * delta
+    small = replace(config, bounds_min=(0.0, 0.0, 0.0), bounds_max=(extent,) * 3,
+                    max_voxels=max(side ** 3, 1))
+    builder = LiveMapBuilder(small)
+    corner = np.full(3, 2.0 * delta)
+    box = Box(corner, corner + 2.0 * delta)
+    builder.update({'box': box})
+    builder.update({'box': box, 'moved': Box(corner + 4.0 * delta, corner + 6.0 * delta)})
+    points = corner + delta * np.array([[0.5, 0.5, 0.5], [3.5, 0.5, 0.5]])
+    builder.update(cloud=points)
+    live = builder.update(cloud=points + delta)
+    far = corner + 8.0 * delta
+    result = Planner(small, ObstacleSet([box])).plan(corner + (0.0, 4.0 * delta, 0.0), far)
+    if result.ok:
+        certify_plan(result, live.obstacles, result.planning_margin, result.resolution,
+                     result.path[0], ahead_m=30.0)
