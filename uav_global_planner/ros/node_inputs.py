@@ -28,6 +28,10 @@ from uav_global_planner.ros.takeover import odometry_velocity, TakeoverPredictor
 #: Diagnostics status of a goal refused because the map is missing.
 NO_MAP_STATUS = 'no_map'
 
+#: How long a goal waits for map messages received before it to be applied (at start-up the
+#: intake may still be building the first map) [s].
+_PENDING_MAP_WAIT_S = 5.0
+
 
 class CommandInputs:
     """The ``goal_pose``, ``odom`` and ``start_pose`` subscriptions.
@@ -83,8 +87,12 @@ class CommandInputs:
             self._diagnostics.refuse(topic, error)
             return
         # The sources count as delivered only once the map holding them is installed, so an
-        # accepted goal is planned on that map.
+        # accepted goal is planned on that map. A map received just before the goal (both
+        # queued while the node started) is waited for, not taken for no map.
         missing = self._intake.map_missing(settings)
+        if missing is not None:
+            self._intake.wait_for_pending_maps(_PENDING_MAP_WAIT_S)
+            missing = self._intake.map_missing(settings)
         if missing is None:
             self._inputs.new_goal(position, orientation)
         else:

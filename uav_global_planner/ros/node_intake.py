@@ -88,6 +88,8 @@ class MapIntake:
         # Seconds from a cloud's header stamp to its map being handed to the worker, since the
         # last map status (the stamp is the publisher's clock: meaningful on one machine).
         self._cloud_latencies: List[float] = []
+        # The intake thread is applying map messages it took from the inbox.
+        self._maps_in_step = False
         # The intake thread's.
         self._builder = builder
         self._markers: Dict[MarkerKey, Obstacle] = {}
@@ -163,6 +165,19 @@ class MapIntake:
         """Keep the conservative grid up to date in every map from now on (the worker needed
         it: later plans then do not inflate it themselves)."""
         self._builder.want_fallback = True
+
+    def wait_for_pending_maps(self, timeout_s: float) -> None:
+        """Wait at most ``timeout_s`` [s] while map messages received so far are still being
+        applied and no map source has delivered yet (a goal that arrives just after the map's
+        first message, before the intake has built it, is then judged on that map)."""
+        def settled() -> bool:
+            pending = (bool(self._inbox.markers) or self._inbox.cloud is not None
+                       or self._maps_in_step)
+            delivered = any(self._sources[name].delivered for name in MAP_SOURCES)
+            return self._inbox.stopping or delivered or not pending
+
+        with self._inbox_lock:
+            self._inbox_lock.wait_for(settled, timeout_s)
 
     # --------------------------------------------------------------------------- reports
 
@@ -276,6 +291,7 @@ class MapIntake:
                 frame_reset, self._inbox.frame_reset = self._inbox.frame_reset, False
                 airspace, self._inbox.airspace = self._inbox.airspace, None
                 airspace_serial = self._inbox.airspace_serial
+                self._maps_in_step = bool(markers) or cloud is not None
             try:
                 messages = [self._deserialize(data, MarkerArray, 'obstacles')
                             for data, _ in markers]
@@ -292,6 +308,9 @@ class MapIntake:
                     # The step built the map from the settings and geofence in force, so
                     # every shapes request up to this serial is in it.
                     self._inputs.shapes_applied(airspace_serial)
+                with self._inbox_lock:
+                    self._maps_in_step = False
+                    self._inbox_lock.notify_all()
 
     def _deserialize(self, data: bytes, msg_type: Any, source: str) -> Optional[Any]:
         try:
