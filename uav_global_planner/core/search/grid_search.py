@@ -210,7 +210,8 @@ _P_WEIGHT = 2        # w of weighted A*
 _P_OMEGA_UP = 3      # climb weight - 1
 _P_OMEGA_DOWN = 4    # descent weight - 1
 _P_KAPPA = 5         # scale of the Euclidean heuristic
-_PARAMS_SIZE = 6
+_P_INV_WIDTH = 6     # 1 / the bucket width of Dial's queue [1/m]
+_PARAMS_SIZE = 7
 
 # Dial's kernel for uniform-cost search when every step costs more than 0 (module notes);
 # False keeps ``dijkstra`` on the heap of the other algorithms.
@@ -385,24 +386,35 @@ def _pop_fill(heap_node, heap_rec, heap_key, node_int, size, node, rec, f, h):
 
 @njit
 def _expand(blocked, mask_table, mask_pool, bricks, slots, node_g, node_int, parent, heap_node,
-            heap_rec, heap_key, directions, brick_step, delta, step_cost, unknown, unknown_table,
-            unknown_pool, unknown_step, state, params, max_pops):
+            heap_rec, heap_key, queue, directions, brick_step, delta, step_cost, unknown,
+            unknown_table, unknown_pool, unknown_step, state, params, max_pops):
     """Run at most ``max_pops`` expansions of the search described by ``state``.
 
-    Two record layouts share this loop; numba compiles one version of it for each, the tests
-    of ``heap_rec is not None`` resolved at compile time. Dense: ``blocked`` is the flat mask,
-    a node's record number is its node number, ``heap_rec`` and ``slots`` are None and the
-    brick arguments are unused. Block-sparse (``blocked`` empty): the mask is ``mask_table``
-    and ``mask_pool`` and the records live in bricks of 8 x 8 x 8 nodes; a brick of records
-    gets a slot (``slots[brick]``, in the order first reached) when the search first reaches
-    one of its nodes; ``brick_step`` holds the record offset of each direction inside a brick.
+    One loop for every algorithm, two open lists and two record layouts; numba compiles one
+    version for each combination in use, the tests of ``queue is None`` and ``slots is None``
+    resolved at compile time, so each version holds only its own code:
+
+    - The open list: the indexed binary heap (``queue`` None; ``heap_node``, ``heap_rec``,
+      ``heap_key``) ordered by (f, h, node number), or Dial's buckets (``queue`` the arrays of
+      :func:`~uav_global_planner.core.search.dial.new_queue`: chunk nodes, chunk records, chunk
+      meta, bucket ends, the current bucket's entries, queue state), which serve ``dijkstra``
+      when every step costs more than 0 (h = 0; ``params[_P_INV_WIDTH]`` is 1 over the bucket
+      width [1/m]); the heap arrays are then unused.
+    - The layout: dense (``slots`` None): ``blocked`` is the flat mask and a node's record number
+      is its node number; ``heap_rec`` is None. Block-sparse (``blocked`` empty): the mask is
+      ``mask_table`` and ``mask_pool`` and the records live in bricks of 8 x 8 x 8 nodes; a
+      brick of records gets a slot (``slots[brick]``, in the order first reached) when the
+      search first reaches one of its nodes; ``brick_step`` holds the record offset of each
+      direction inside a brick. A node inside its brick (off its faces) has all 26 neighbours
+      in that brick, which is looked up once.
 
     Returns ``_FOUND`` when the goal was closed, ``_EXHAUSTED`` when the open list is empty,
-    ``_PAUSED`` when ``max_pops`` ran out and, block-sparse only, ``_GROW``, without expanding,
-    when the record pool might not hold the bricks of one more expansion (8) or the heap its 26
-    neighbours (the caller grows them and resumes); ``state`` is updated so the call can be
-    resumed. Node records are only meaningful when their stamp equals the current generation;
-    a heap position of -1 marks a closed node.
+    ``_PAUSED`` when ``max_pops`` ran out and ``_GROW``, without expanding, when the record pool
+    (block-sparse) might not hold the bricks of one more expansion (8), or the open list its 26
+    neighbours (the heap of a block-sparse search; Dial's chunks); the caller grows them and
+    resumes. ``state`` (and Dial's queue state) are updated so the call can be resumed. Node
+    records are only meaningful when their stamp equals the current generation; slot 3 of a
+    record is -1 once the node is closed (the heap position, or 0, while it is open).
 
     ``unknown_step`` (26 values, or None for none) is half the extra cost of each step per end
     node in unknown space (module notes); the mask is ``unknown`` (dense, flat) or
@@ -425,6 +437,7 @@ def _expand(blocked, mask_table, mask_pool, bricks, slots, node_g, node_int, par
     omega_up = params[_P_OMEGA_UP]
     omega_down = params[_P_OMEGA_DOWN]
     kappa = params[_P_KAPPA]
+    inv_width = params[_P_INV_WIDTH]
     capacity = parent.shape[0] // BRICK_NODES
     heap_capacity = heap_node.shape[0]
     by = bricks[1]
@@ -432,29 +445,81 @@ def _expand(blocked, mask_table, mask_pool, bricks, slots, node_g, node_int, par
     nyz = ny * nz
     # Compiled without the unknown-space charges when there are none (``unknown_step`` None).
     charged = unknown_step is not None
+    records = slots is not None
+    # Dial's queue, kept in locals while the loop runs (unused with the heap).
+    cur = mask = free = top = avail = count = taken = chunks = np.int64(0)
+    if queue is not None:
+        qstate = queue[5]
+        cur = qstate[dial.Q_CUR]
+        mask = qstate[dial.Q_MASK]
+        free = qstate[dial.Q_FREE]
+        top = qstate[dial.Q_TOP]
+        avail = qstate[dial.Q_AVAIL]
+        count = qstate[dial.Q_COUNT]
+        taken = qstate[dial.Q_POS]
+        chunks = queue[2].shape[0] // 2
     pops = 0
     status = _PAUSED
     while True:
-        if size == 0:
-            status = _EXHAUSTED
-            break
-        if pops >= max_pops:
-            break
-        node = np.int64(heap_node[0])
-        rec_node = node
-        if heap_rec is not None:
-            if used + 8 > capacity or size + 26 > heap_capacity:
+        if queue is None:
+            if size == 0:
+                status = _EXHAUSTED
+                break
+            if pops >= max_pops:
+                break
+            node = np.int64(heap_node[0])
+            rec_node = node
+            if slots is not None:
+                if used + 8 > capacity or size + 26 > heap_capacity:
+                    status = _GROW
+                    break
+                rec_node = np.int64(heap_rec[0])
+            size -= 1
+            if size > 0:
+                last = heap_node[size]
+                rec_last = np.int64(last)
+                if slots is not None:
+                    rec_last = np.int64(heap_rec[size])
+                _pop_fill(heap_node, heap_rec, heap_key, node_int, size, last, rec_last,
+                          heap_key[2 * size], heap_key[2 * size + 1])
+        else:
+            if pops >= max_pops:
+                break
+            if taken >= count:
+                # The bucket is done: take the next one of the ring, its entries in node order.
+                if avail == chunks:
+                    status = _EXHAUSTED
+                    break
+                chunk = np.int64(-1)
+                while chunk < 0:
+                    cur += 1
+                    end = 2 * (cur & mask)
+                    chunk = np.int64(queue[3][end])
+                queue[3][end] = -1
+                queue[3][end + 1] = -1
+                free, avail, count = dial.take_bucket(queue[0], queue[1], queue[2], queue[4],
+                                                      chunk, free, avail, records)
+                taken = 0
+                continue
+            if avail < 27 or (slots is not None and used + 8 > capacity):
                 status = _GROW
                 break
-            rec_node = np.int64(heap_rec[0])
-        size -= 1
-        if size > 0:
-            last = heap_node[size]
-            rec_last = np.int64(last)
-            if heap_rec is not None:
-                rec_last = np.int64(heap_rec[size])
-            _pop_fill(heap_node, heap_rec, heap_key, node_int, size, last, rec_last,
-                      heap_key[2 * size], heap_key[2 * size + 1])
+            key = queue[4][taken]
+            taken += 1
+            node = key
+            rec_node = key
+            if slots is not None:
+                node = key >> 31
+                rec_node = key & dial.REC_MASK
+            if node_int[4 * rec_node + _HEAP_SLOT] < 0:
+                # A stale entry: the node was reached again at a lower cost and expanded since.
+                continue
+            bucket = np.int64(node_g[2 * rec_node] * inv_width)
+            if bucket > cur:
+                # A cost beyond the ring when it was pushed: place it again.
+                free, top, avail = dial.push(queue[0], queue[1], queue[2], queue[3], cur, mask,
+                                             free, top, avail, bucket, node, rec_node, records)
+                continue
         node_int[4 * rec_node + _HEAP_SLOT] = -1
         pops += 1
         if node == goal:
@@ -468,10 +533,27 @@ def _expand(blocked, mask_table, mask_pool, bricks, slots, node_g, node_int, par
         u_node = 0.0
         if charged:
             u_node = dial.unknown_at(unknown, unknown_table, unknown_pool, node, i, j, k, by, bz)
-        # Block-sparse: a node inside its brick (off its faces) has its 26 neighbours in the
-        # same brick, whose mask and records are looked up once (dense: ``slots`` None).
-        inside, kind_node, base, local_node = dial.node_place(mask_table, bricks, slots,
-                                                              rec_node, i, j, k, nx, ny, nz)
+        # Dense: a node off the grid's faces needs no bounds checks. Block-sparse: a node off
+        # its brick's faces has its 26 neighbours in the same brick, whose mask and records are
+        # looked up once.
+        fast = False
+        inside = False
+        kind_node = 0
+        base = np.int64(0)
+        local_node = np.int64(0)
+        if slots is None:
+            fast = 0 < i < nx - 1 and 0 < j < ny - 1 and 0 < k < nz - 1
+        else:
+            li = i & _BRICK_MASK
+            lj = j & _BRICK_MASK
+            lk = k & _BRICK_MASK
+            inside = (0 < li < _BRICK_MASK and 0 < lj < _BRICK_MASK and 0 < lk < _BRICK_MASK
+                      and i + 1 < nx and j + 1 < ny and k + 1 < nz)
+            if inside:
+                local_node = (li * BRICK + lj) * BRICK + lk
+                base = rec_node - local_node
+                kind_node = mask_table[((i >> BRICK_BITS) * by + (j >> BRICK_BITS)) * bz
+                                       + (k >> BRICK_BITS)]
         for d in range(26):
             ni = i + directions[d, 0]
             nj = j + directions[d, 1]
@@ -483,9 +565,12 @@ def _expand(blocked, mask_table, mask_pool, bricks, slots, node_g, node_int, par
                 if kind_node >= 0 and mask_pool[kind_node, local]:
                     continue
                 rec = base + local
+            elif fast:
+                if blocked[neighbour]:
+                    continue
             elif ni < 0 or ni >= nx or nj < 0 or nj >= ny or nk < 0 or nk >= nz:
                 continue
-            elif heap_rec is not None:
+            elif slots is not None:
                 brick = ((ni >> BRICK_BITS) * by + (nj >> BRICK_BITS)) * bz + (nk >> BRICK_BITS)
                 local = (((ni & _BRICK_MASK) * BRICK) + (nj & _BRICK_MASK)) * BRICK + (
                     nk & _BRICK_MASK)
@@ -507,26 +592,49 @@ def _expand(blocked, mask_table, mask_pool, bricks, slots, node_g, node_int, par
                 u_next = dial.unknown_at(unknown, unknown_table, unknown_pool, neighbour, ni, nj,
                                          nk, by, bz)
                 g_new += (u_node + u_next) * unknown_step[d]
-            if node_int[4 * rec + _STAMP_SLOT] != generation:
+            at = 4 * rec
+            fresh = node_int[at + _STAMP_SLOT] != generation
+            held = np.int64(0)
+            g_old = 0.0
+            if fresh:
                 # First visit in this query: the record is stale, overwrite it.
-                node_int[4 * rec + _STAMP_SLOT] = generation
-                node_g[2 * rec] = g_new
-                parent[rec] = d
-                h = _heuristic(code, abs(ni - gi), abs(nj - gj), gk - nk, resolution, eta,
-                               weight, omega_up, omega_down, kappa)
-                _sift_up(heap_node, heap_rec, heap_key, node_int, size, neighbour, rec,
-                         g_new + h, h)
-                size += 1
+                node_int[at + _STAMP_SLOT] = generation
             else:
-                pos = np.int64(node_int[4 * rec + _HEAP_SLOT])
-                if pos < 0 or g_new >= node_g[2 * rec]:
+                held = np.int64(node_int[at + _HEAP_SLOT])
+                g_old = node_g[2 * rec]
+                if held < 0 or g_new >= g_old:
                     continue
-                # Decrease-key: h is kept in the heap, so it is not recomputed.
-                node_g[2 * rec] = g_new
-                parent[rec] = d
-                h = heap_key[2 * pos + 1]
-                _sift_up(heap_node, heap_rec, heap_key, node_int, pos, neighbour, rec,
-                         g_new + h, h)
+            node_g[2 * rec] = g_new
+            parent[rec] = d
+            if queue is None:
+                if fresh:
+                    h = _heuristic(code, abs(ni - gi), abs(nj - gj), gk - nk, resolution, eta,
+                                   weight, omega_up, omega_down, kappa)
+                    _sift_up(heap_node, heap_rec, heap_key, node_int, size, neighbour, rec,
+                             g_new + h, h)
+                    size += 1
+                else:
+                    # Decrease-key: h is kept in the heap, so it is not recomputed.
+                    h = heap_key[2 * held + 1]
+                    _sift_up(heap_node, heap_rec, heap_key, node_int, held, neighbour, rec,
+                             g_new + h, h)
+            else:
+                bucket = np.int64(g_new * inv_width)
+                if fresh:
+                    node_int[at + _HEAP_SLOT] = 0
+                elif bucket >= np.int64(g_old * inv_width):
+                    # Still in the bucket of its entry.
+                    continue
+                free, top, avail = dial.push(queue[0], queue[1], queue[2], queue[3], cur, mask,
+                                             free, top, avail, bucket, neighbour, rec, records)
+    if queue is not None:
+        qstate = queue[5]
+        qstate[dial.Q_CUR] = cur
+        qstate[dial.Q_FREE] = free
+        qstate[dial.Q_TOP] = top
+        qstate[dial.Q_AVAIL] = avail
+        qstate[dial.Q_COUNT] = count
+        qstate[dial.Q_POS] = taken
     state[_S_SIZE] = size
     state[_S_EXPANDED] += pops
     state[_S_USED] = used
@@ -827,7 +935,7 @@ class SearchWorkspace:
             state = self._state
             flat, table, pool = self._kernel_masks()
             u_flat, u_table, u_pool, u_step = self._unknown_arrays(unknown, rate, delta_m)
-            inv_width = self._begin_dial(start, code, step_cost, u_step)
+            dial_queue = self._begin_dial(start, code, step_cost, u_step)
             while True:
                 if budget_s > 0.0 or checkpoint is not None:
                     pops = _CHUNK
@@ -835,24 +943,19 @@ class SearchWorkspace:
                     pops = _MAX_NODES
                 if budget_n > 0:
                     pops = min(pops, budget_n - int(state[_S_EXPANDED]))
-                if inv_width > 0.0:
-                    status = dial.expand(
-                        flat, table, pool, self._bricks, self._slots if self._sparse else None,
-                        self._node_g, self._node_int, self._parent, self._q_node,
-                        self._q_rec, self._q_meta, self._q_ends, self._q_order, self._qstate,
-                        _DIRECTIONS,
-                        _BRICK_STEP, self._delta, step_cost, u_flat, u_table, u_pool,
-                        u_step if len(u_step) else None, state, inv_width, pops)
-                else:
-                    status = _expand(flat, table, pool, self._bricks,
-                                     self._slots if self._sparse else None,
-                                     self._node_g, self._node_int, self._parent,
-                                     self._heap_node, self._heap_rec, self._heap_key,
-                                     _DIRECTIONS, _BRICK_STEP, self._delta, step_cost, u_flat,
-                                     u_table, u_pool, u_step if len(u_step) else None, state,
-                                     self._params, pops)
+                # Dial's queue for the kernel, or None for the heap (its arrays may have grown).
+                queue = None
+                if dial_queue:
+                    queue = (self._q_node, self._q_rec, self._q_meta, self._q_ends,
+                             self._q_order, self._qstate)
+                status = _expand(flat, table, pool, self._bricks,
+                                 self._slots if self._sparse else None, self._node_g,
+                                 self._node_int, self._parent, self._heap_node, self._heap_rec,
+                                 self._heap_key, queue, _DIRECTIONS, _BRICK_STEP, self._delta,
+                                 step_cost, u_flat, u_table, u_pool,
+                                 u_step if len(u_step) else None, state, self._params, pops)
                 if status == _GROW:
-                    self._grow(inv_width > 0.0)
+                    self._grow(dial_queue)
                     continue
                 expanded = int(state[_S_EXPANDED])
                 if status == _FOUND:
@@ -907,13 +1010,13 @@ class SearchWorkspace:
         return np.ascontiguousarray(unknown).reshape(-1), _NO_TABLE, _NO_POOL, step
 
     def _begin_dial(self, start: int, code: int, step_cost: np.ndarray,
-                    unknown_step: np.ndarray) -> float:
-        """Put the start node on the open list of Dial's kernel when it serves this query
-        (``dijkstra``, every step costing more than 0); return 1 / the bucket width [1/m], or
-        0.0 when the heap serves it. Call after :meth:`_begin`."""
+                    unknown_step: np.ndarray) -> bool:
+        """Put the start node on Dial's queue when it serves this query (``dijkstra``, every
+        step costing more than 0) and set the bucket width; False when the heap serves it.
+        Call after :meth:`_begin`."""
         cheapest = float(step_cost.min())
         if code != _H_ZERO or not _DIAL or not cheapest > 0.0:
-            return 0.0
+            return False
         width = cheapest * _DIAL_WIDTH
         costliest = float(step_cost.max()) + 2.0 * float(unknown_step.max(initial=0.0))
         buckets = min(math.ceil(costliest / width) + 4, _DIAL_MAX_RING)
@@ -927,7 +1030,8 @@ class SearchWorkspace:
         dial.reset(self._q_ends, self._qstate, ring, len(self._q_meta) // 2)
         dial.push_start(self._q_node, self._q_rec, self._q_meta, self._q_ends, self._qstate,
                         start, record)
-        return 1.0 / width
+        self._params[_P_INV_WIDTH] = 1.0 / width
+        return True
 
     def _begin(self, start: int, goal: int, code: int, resolution: float, eta: float,
                weight: float, climb: float = 1.0, descent: float = 1.0) -> None:
