@@ -495,7 +495,7 @@ def textbook_search(blocked: np.ndarray, start, goal, algorithm: str, resolution
 def test_open_list_pops_in_binary_heap_order(monkeypatch, seed, dial):
     """The bucketed open list expands exactly the nodes, in the order, of one binary heap: same
     path, cost and number of expansions as a textbook A*, on both grid layouts. Dial's mode of
-    ``dijkstra`` (each bucket in node order) keeps the cost, not the order."""
+    ``dijkstra`` (each bucket in push order) keeps the cost, not the order."""
     monkeypatch.setattr(search_module, '_DIAL', dial)
     blocked, resolution, eta, start, goal = random_scene(seed)
     for mask in (blocked, SparseMask.from_dense(blocked)):
@@ -588,7 +588,7 @@ def test_both_layouts_match_csgraph_on_larger_grids(seed):
 @pytest.mark.parametrize('seed', range(0, N_RANDOM_SCENES, 12))
 @pytest.mark.parametrize('climb, descent', [(1.0, 1.0), (2.5, 0.4), (1.0, 0.0), (0.0, 3.0)])
 def test_dial_mode_keeps_the_uniform_cost_optimum(monkeypatch, seed, climb, descent):
-    """``dijkstra`` in Dial's mode (buckets as wide as the cheapest step, popped in node order)
+    """``dijkstra`` in Dial's mode (buckets as wide as the cheapest step, popped in push order)
     costs what the exact order costs, with climb and descent weights too; a free vertical step
     (a weight of 0) leaves it in the exact order."""
     blocked, resolution, eta, start, goal = random_scene(seed)

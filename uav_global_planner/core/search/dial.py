@@ -6,10 +6,10 @@ buckets a hair narrower than ``c_min``: a node's cost is final once its bucket i
 a path through another node of the same bucket costs at least ``c_min`` more and ends in a later
 bucket (Dial, CACM 12(11), 1969). So the order inside a bucket does not matter for the costs,
 and a bucket needs no heap: it is a list of chunks of node numbers, filled unordered (a push
-is an append) and, once current, copied out and sorted by node number (:func:`take_bucket`),
-so consecutive expansions touch neighbouring records and mask bytes. A large search is bound
-by memory: at 6 M nodes, expanding each bucket in push order was no faster than ordering it in
-a heap keyed by node number, while sorting it once measured 2.4 times faster than that heap.
+is an append) and read in the order of its pushes. No push reaches the current bucket, so it is
+read where it lies, each chunk freed once read. Sorting each bucket by node number, so that
+consecutive expansions touch neighbouring memory, was measured too: 3 % slower on the dense
+6 M grid and 5-10 % slower on the block-sparse 20 M grid of ``bench_search_peers``.
 
 No node is re-ordered in a heap: a better cost for an open node that moves it to an earlier
 bucket adds an entry there (a better cost within its bucket only updates the record), and the
@@ -17,8 +17,8 @@ stale entry is skipped when reached (its node is closed by then). A cost beyond 
 with very costly steps) waits in the ring's last bucket and is placed again when reached.
 
 Costs are exact (the same optimum as the exact key order); among paths of equal cost another one
-may be returned. The order of expansions (by bucket, then node number) depends only on the
-inputs, not on the grid layout.
+may be returned. The order of expansions (by bucket, then by push) depends only on the inputs,
+not on the grid layout.
 The records, the parent array, the state and the block-sparse bricks are those of
 :mod:`uav_global_planner.core.search.grid_search` (its module notes): a record is 16 bytes,
 float64 cost in slot 0, int32 generation stamp in slot 2 and, in slot 3, -1 once the node is
@@ -29,13 +29,12 @@ Queue layout
 ``chunk_node`` and ``chunk_rec`` (int32, ``CHUNK`` entries a chunk) hold node and record
 numbers (records only on the block-sparse layout); ``chunk_meta`` holds, per chunk, the next
 chunk of its list and its entry count; ``ends`` the first and last chunk of each ring bucket
-(-1 when empty); ``order`` (int64, as many entries as the chunks) the current bucket's
-entries, sorted; ``qstate`` the slots ``Q_*``. Free chunks form a list; the caller grows the
+(-1 when empty); ``qstate`` the slots ``Q_*``. Free chunks form a list; the caller grows the
 chunk arrays (:func:`grown`) when the kernel asks for more.
 
 The search loop is ``grid_search``'s kernel, compiled for this queue (its ``queue`` argument
 holds these arrays) or for its heap: the neighbour step, the hot part of every search, is
-written once, in the loop itself. This module's :func:`push` and :func:`take_bucket` are
+written once, in the loop itself. This module's :func:`push` and :func:`next_chunk` are
 inlined into it. An earlier version ran its own loop, whose neighbour step called an inlined
 function: at 20 M block-sparse nodes its searches ran 6 times slower than with the step
 written out in the loop.
@@ -59,14 +58,11 @@ Q_MASK = 1     # ring size - 1 (a power of two minus 1)
 Q_FREE = 2     # first chunk of the free list, -1 for none
 Q_TOP = 3      # chunks handed out so far (free ones included)
 Q_AVAIL = 4    # chunks not in use (free list and never handed out)
-Q_COUNT = 5    # entries of the current bucket (in ``order``)
+Q_CHUNK = 5    # the current bucket's chunk being read, -1 before the first
 Q_POS = 6      # next entry of it
 Q_STATE_SIZE = 7
 
 _BRICK_MASK = BRICK - 1
-#: A bucket entry of the block-sparse layout is node number << 31 | record number: this mask
-#: takes out the record number.
-REC_MASK = (1 << 31) - 1
 
 
 def brick_steps(directions: np.ndarray) -> np.ndarray:
@@ -75,23 +71,21 @@ def brick_steps(directions: np.ndarray) -> np.ndarray:
 
 
 def new_queue(chunks: int, ring: int) -> Tuple[np.ndarray, ...]:
-    """Fresh queue arrays: chunk nodes, chunk records, chunk meta, bucket ends, the current
-    bucket's sorted entries, state."""
+    """Fresh queue arrays: chunk nodes, chunk records, chunk meta, bucket ends, state."""
     qstate = np.zeros(Q_STATE_SIZE, dtype=np.int64)
     qstate[Q_AVAIL] = chunks
+    qstate[Q_CHUNK] = -1
     return (np.zeros(chunks * CHUNK, dtype=np.int32), np.zeros(chunks * CHUNK, dtype=np.int32),
-            np.zeros(2 * chunks, dtype=np.int32), np.full(2 * ring, -1, dtype=np.int32),
-            np.zeros(chunks * CHUNK, dtype=np.int64), qstate)
+            np.zeros(2 * chunks, dtype=np.int32), np.full(2 * ring, -1, dtype=np.int32), qstate)
 
 
 def grown(chunk_node: np.ndarray, chunk_rec: np.ndarray, chunk_meta: np.ndarray,
-          order: np.ndarray, qstate: np.ndarray) -> Tuple[np.ndarray, ...]:
-    """The chunk arrays and ``order`` with twice the chunks, their entries kept (the new chunks
+          qstate: np.ndarray) -> Tuple[np.ndarray, ...]:
+    """The chunk arrays with twice the chunks, their entries kept (the new chunks
     available)."""
     chunks = chunk_meta.shape[0] // 2
     arrays = []
-    for old, width in ((chunk_node, CHUNK), (chunk_rec, CHUNK), (chunk_meta, 2),
-                       (order, CHUNK)):
+    for old, width in ((chunk_node, CHUNK), (chunk_rec, CHUNK), (chunk_meta, 2)):
         new = np.zeros(2 * chunks * width, dtype=old.dtype)
         new[:chunks * width] = old
         arrays.append(new)
@@ -110,7 +104,7 @@ def reset(ends, qstate, ring, chunks):
     qstate[Q_FREE] = -1
     qstate[Q_TOP] = 0
     qstate[Q_AVAIL] = chunks
-    qstate[Q_COUNT] = 0
+    qstate[Q_CHUNK] = -1
     qstate[Q_POS] = 0
 
 
@@ -151,27 +145,26 @@ def push(chunk_node, chunk_rec, chunk_meta, ends, cur, mask, free, top, avail, b
 
 
 @njit(inline='always')
-def take_bucket(chunk_node, chunk_rec, chunk_meta, order, chunk, free, avail, records):
-    """Move the entries of the bucket whose first chunk is ``chunk`` to ``order``, sorted (node
-    numbers; with ``records`` node << 31 | record), and free its chunks; return the free list
-    head, the chunks available and the number of entries."""
-    count = 0
-    while chunk >= 0:
-        first = chunk * CHUNK
-        entries = chunk_meta[2 * chunk + 1]
-        for e in range(entries):
-            key = np.int64(chunk_node[first + e])
-            if records:
-                key = (key << 31) | np.int64(chunk_rec[first + e])
-            order[count] = key
-            count += 1
+def next_chunk(chunk_meta, ends, chunk, cur, mask, free, avail, chunks):
+    """The chunk to read after ``chunk`` (-1 before the first), which is freed: the next one of
+    its bucket, else the first of the next non-empty bucket of the ring, which becomes the
+    current one and leaves the ring. Returns that chunk (-1 when the queue of ``chunks`` chunks
+    is empty), the current bucket, the free list head and the chunks available."""
+    following = np.int64(-1)
+    if chunk >= 0:
         following = np.int64(chunk_meta[2 * chunk])
         chunk_meta[2 * chunk] = free
         free = chunk
         avail += 1
-        chunk = following
-    order[:count] = np.sort(order[:count])
-    return free, avail, count
+    if following < 0 and avail < chunks:
+        end = 0
+        while following < 0:
+            cur += 1
+            end = 2 * (cur & mask)
+            following = np.int64(ends[end])
+        ends[end] = -1
+        ends[end + 1] = -1
+    return following, cur, free, avail
 
 
 @njit

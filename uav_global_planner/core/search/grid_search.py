@@ -84,10 +84,10 @@ costs ``c`` times its length for each of its two end nodes in unknown space, hal
 so a path pays ``c`` per metre it runs between unknown nodes. The extra cost is >= 0, so every
 heuristic above keeps its guarantees (admissible and consistent where it was).
 
-``dijkstra`` (h = 0) runs its own kernel whenever every step costs more than 0
-(:mod:`uav_global_planner.core.search.dial`): Dial's buckets as wide as the cheapest step, each
-expanded in node order, so consecutive expansions touch neighbouring memory; the costs are the
-same optimum, the path one of the optimal ones.
+``dijkstra`` (h = 0) keeps its open list in Dial's buckets whenever every step costs more than 0
+(:mod:`uav_global_planner.core.search.dial`): buckets as wide as the cheapest step, each
+expanded in the order of its pushes, with no heap; the costs are the same optimum, the path one
+of the optimal ones.
 
 Implementation: a kernel compiled by numba (:mod:`uav_global_planner.core.jit`) works on flat
 C-order node numbers. The per-node arrays (cost g, parent direction, heap position, generation
@@ -397,9 +397,9 @@ def _expand(blocked, mask_table, mask_pool, bricks, slots, node_g, node_int, par
     - The open list: the indexed binary heap (``queue`` None; ``heap_node``, ``heap_rec``,
       ``heap_key``) ordered by (f, h, node number), or Dial's buckets (``queue`` the arrays of
       :func:`~uav_global_planner.core.search.dial.new_queue`: chunk nodes, chunk records, chunk
-      meta, bucket ends, the current bucket's entries, queue state), which serve ``dijkstra``
-      when every step costs more than 0 (h = 0; ``params[_P_INV_WIDTH]`` is 1 over the bucket
-      width [1/m]); the heap arrays are then unused.
+      meta, bucket ends, queue state), which serve ``dijkstra`` when every step costs more
+      than 0 (h = 0; ``params[_P_INV_WIDTH]`` is 1 over the bucket width [1/m]); the heap
+      arrays are then unused.
     - The layout: dense (``slots`` None): ``blocked`` is the flat mask and a node's record number
       is its node number; ``heap_rec`` is None. Block-sparse (``blocked`` empty): the mask is
       ``mask_table`` and ``mask_pool`` and the records live in bricks of 8 x 8 x 8 nodes; a
@@ -447,15 +447,15 @@ def _expand(blocked, mask_table, mask_pool, bricks, slots, node_g, node_int, par
     charged = unknown_step is not None
     records = slots is not None
     # Dial's queue, kept in locals while the loop runs (unused with the heap).
-    cur = mask = free = top = avail = count = taken = chunks = np.int64(0)
+    cur = mask = free = top = avail = reading = taken = chunks = np.int64(0)
     if queue is not None:
-        qstate = queue[5]
+        qstate = queue[4]
         cur = qstate[dial.Q_CUR]
         mask = qstate[dial.Q_MASK]
         free = qstate[dial.Q_FREE]
         top = qstate[dial.Q_TOP]
         avail = qstate[dial.Q_AVAIL]
-        count = qstate[dial.Q_COUNT]
+        reading = qstate[dial.Q_CHUNK]
         taken = qstate[dial.Q_POS]
         chunks = queue[2].shape[0] // 2
     pops = 0
@@ -485,32 +485,24 @@ def _expand(blocked, mask_table, mask_pool, bricks, slots, node_g, node_int, par
         else:
             if pops >= max_pops:
                 break
-            if taken >= count:
-                # The bucket is done: take the next one of the ring, its entries in node order.
-                if avail == chunks:
+            if reading < 0 or taken == queue[2][2 * reading + 1]:
+                # The chunk is read: the next one of the bucket, or of the next bucket.
+                reading, cur, free, avail = dial.next_chunk(queue[2], queue[3], reading, cur,
+                                                            mask, free, avail, chunks)
+                taken = 0
+                if reading < 0:
                     status = _EXHAUSTED
                     break
-                chunk = np.int64(-1)
-                while chunk < 0:
-                    cur += 1
-                    end = 2 * (cur & mask)
-                    chunk = np.int64(queue[3][end])
-                queue[3][end] = -1
-                queue[3][end + 1] = -1
-                free, avail, count = dial.take_bucket(queue[0], queue[1], queue[2], queue[4],
-                                                      chunk, free, avail, records)
-                taken = 0
                 continue
             if avail < 27 or (slots is not None and used + 8 > capacity):
                 status = _GROW
                 break
-            key = queue[4][taken]
+            entry = reading * dial.CHUNK + taken
             taken += 1
-            node = key
-            rec_node = key
+            node = np.int64(queue[0][entry])
+            rec_node = node
             if slots is not None:
-                node = key >> 31
-                rec_node = key & dial.REC_MASK
+                rec_node = np.int64(queue[1][entry])
             if node_int[4 * rec_node + _HEAP_SLOT] < 0:
                 # A stale entry: the node was reached again at a lower cost and expanded since.
                 continue
@@ -628,12 +620,12 @@ def _expand(blocked, mask_table, mask_pool, bricks, slots, node_g, node_int, par
                 free, top, avail = dial.push(queue[0], queue[1], queue[2], queue[3], cur, mask,
                                              free, top, avail, bucket, neighbour, rec, records)
     if queue is not None:
-        qstate = queue[5]
+        qstate = queue[4]
         qstate[dial.Q_CUR] = cur
         qstate[dial.Q_FREE] = free
         qstate[dial.Q_TOP] = top
         qstate[dial.Q_AVAIL] = avail
-        qstate[dial.Q_COUNT] = count
+        qstate[dial.Q_CHUNK] = reading
         qstate[dial.Q_POS] = taken
     state[_S_SIZE] = size
     state[_S_EXPANDED] += pops
@@ -690,7 +682,7 @@ class SearchWorkspace:
     more. Memory then follows what the searches touch (about 8.7 kB per brick reached), not
     the grid's volume, and a first query commits only the pages it writes.
 
-    Dial's kernel (``dijkstra``) keeps its open list apart (16 bytes an entry, in chunks of
+    Dial's queue (``dijkstra``) keeps its open list apart (8 bytes an entry, in chunks of
     1024; about the frontier of a search, not the grid), doubling when a search needs more.
 
     Searches on one workspace are serialised by a lock; use one workspace per thread to search
@@ -728,8 +720,8 @@ class SearchWorkspace:
         self._sparse = False
         # Record number of each heap entry (block-sparse layout; None on the dense one).
         self._heap_rec: Optional[np.ndarray] = None
-        # The open list of Dial's kernel (dial module); it grows as a search needs.
-        (self._q_node, self._q_rec, self._q_meta, self._q_ends, self._q_order,
+        # Dial's queue (dial module), the open list of dijkstra; it grows as a search needs.
+        (self._q_node, self._q_rec, self._q_meta, self._q_ends,
          self._qstate) = dial.new_queue(dial.FIRST_CHUNKS, _DIAL_RING)
         self._use(self._blocked)
 
@@ -784,7 +776,7 @@ class SearchWorkspace:
         arrays: List[np.ndarray] = [self._node_g, self._parent, self._heap_node, self._heap_key]
         if self._heap_rec is not None:
             arrays += [self._heap_rec, self._slots]
-        arrays += [self._q_node, self._q_rec, self._q_meta, self._q_ends, self._q_order]
+        arrays += [self._q_node, self._q_rec, self._q_meta, self._q_ends]
         return int(sum(a.nbytes for a in arrays))
 
     def _kernel_masks(self) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -823,8 +815,8 @@ class SearchWorkspace:
             heap_key[:2 * size] = self._heap_key[:2 * size]
             self._heap_node, self._heap_rec, self._heap_key = heap_node, heap_rec, heap_key
         if dial_queue and self._qstate[dial.Q_AVAIL] < 27:
-            (self._q_node, self._q_rec, self._q_meta, self._q_order) = dial.grown(
-                self._q_node, self._q_rec, self._q_meta, self._q_order, self._qstate)
+            (self._q_node, self._q_rec, self._q_meta) = dial.grown(
+                self._q_node, self._q_rec, self._q_meta, self._qstate)
 
     def set_blocked(self, blocked: Union[np.ndarray, SparseMask]) -> None:
         """Search another occupancy grid of the same shape, keeping the allocated memory.
@@ -947,7 +939,7 @@ class SearchWorkspace:
                 queue = None
                 if dial_queue:
                     queue = (self._q_node, self._q_rec, self._q_meta, self._q_ends,
-                             self._q_order, self._qstate)
+                             self._qstate)
                 status = _expand(flat, table, pool, self._bricks,
                                  self._slots if self._sparse else None, self._node_g,
                                  self._node_int, self._parent, self._heap_node, self._heap_rec,
