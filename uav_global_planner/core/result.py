@@ -383,4 +383,5 @@ def polyline_length(points: np.ndarray) -> float:
     pts = np.asarray(points, dtype=np.float64)
     if len(pts) < 2:
         return 0.0
-    return float(np.sum(np.linalg.norm(np.diff(pts, axis=0), axis=1)))
+    steps = pts[1:] - pts[:-1]
+    return float(np.sqrt((steps * steps).sum(axis=1)).sum())

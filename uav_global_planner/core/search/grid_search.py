@@ -176,6 +176,9 @@ _NO_PARENT = 26
 
 # Per-node arrays from this size up are memory maps without huge pages (see _lazy_zeros) [bytes].
 _LAZY_BYTES = 1 << 24
+# Dense per-node arrays and heap up to this size in all are committed when the workspace is
+# made (a few hundred page faults there, not in the first search) [bytes].
+_COMMIT_BYTES = 1 << 24
 
 # Node numbers, heap positions and the heap itself are int32 (half the memory of int64).
 _MAX_NODES = 2 ** 31 - 1
@@ -650,20 +653,26 @@ def _record(node, ny, nz, bricks, slots):
 
 
 @njit
-def _trace(goal, parent, delta, ny, nz, bricks, slots):
-    """Flat node numbers from the start to ``goal``, following the parent directions."""
+def _trace(goal, parent, node_g, delta, ny, nz, bricks, slots):
+    """The path from the start to ``goal``, following the parent directions, as node indices
+    (i, j, k), shape (N, 3), and the goal's cost [m]."""
     length = 1
     node = goal
     while parent[_record(node, ny, nz, bricks, slots)] != _NO_PARENT:
         node -= delta[parent[_record(node, ny, nz, bricks, slots)]]
         length += 1
-    path = np.empty(length, dtype=np.int64)
+    path = np.empty((length, 3), dtype=np.int64)
+    nyz = ny * nz
     node = goal
     for slot in range(length - 1, -1, -1):
-        path[slot] = node
+        i = node // nyz
+        rest = node - i * nyz
+        path[slot, 0] = i
+        path[slot, 1] = rest // nz
+        path[slot, 2] = rest - (rest // nz) * nz
         if slot > 0:
             node -= delta[parent[_record(node, ny, nz, bricks, slots)]]
-    return path
+    return path, node_g[2 * _record(goal, ny, nz, bricks, slots)]
 
 
 class SearchWorkspace:
@@ -715,6 +724,8 @@ class SearchWorkspace:
         self._state = np.zeros(_STATE_SIZE, dtype=np.int64)
         self._state[_S_NX:_S_NZ + 1] = self.shape
         self._params = np.zeros(_PARAMS_SIZE, dtype=np.float64)
+        self._step_cost_key: Tuple[float, float, float] = (0.0, 0.0, 0.0)
+        self._step_cost = _STEP_LENGTH
         self._generation = 0
         self._lock = threading.Lock()
         self._sparse = False
@@ -748,9 +759,8 @@ class SearchWorkspace:
             self._heap_key = np.zeros(2 * _FIRST_HEAP, dtype=np.float64)
             # Commit the first pool now (about 10 MB), so that a first query does not pay the
             # page faults of its records.
-            for array in (self._node_g, self._parent, self._heap_node, self._heap_rec,
-                          self._heap_key):
-                array.view(np.uint8)[::_PAGE_BYTES] = 0
+            _commit_pages(self._node_g, self._parent, self._heap_node, self._heap_rec,
+                          self._heap_key)
         else:
             # Large np.zeros / np.empty arrays are fresh zero pages: memory is only committed
             # where a search touches it. Zeroed records carry stamp 0, which no query uses.
@@ -763,6 +773,9 @@ class SearchWorkspace:
             self._heap_rec = None
             self._bricks = _NO_BRICKS
             self._slots = _NO_SLOTS
+            arrays = (self._node_g, self._parent, self._heap_node, self._heap_key)
+            if sum(array.nbytes for array in arrays) <= _COMMIT_BYTES:
+                _commit_pages(*arrays)
         self._node_int = self._node_g.view(np.int32)
 
     @property
@@ -923,7 +936,7 @@ class SearchWorkspace:
                 raise GoalOccupiedError(f'goal node {self._unravel(goal)} is blocked')
             began = time.perf_counter()
             self._begin(start, goal, code, delta_m, eta, w, climb, descent)
-            step_cost = delta_m * (_STEP_LENGTH + (climb - 1.0) * _UP + (descent - 1.0) * _DOWN)
+            step_cost = self._step_costs(delta_m, climb, descent)
             state = self._state
             flat, table, pool = self._kernel_masks()
             u_flat, u_table, u_pool, u_step = self._unknown_arrays(unknown, rate, delta_m)
@@ -973,16 +986,20 @@ class SearchWorkspace:
                         f'search ran out of its time budget (max_time_s = {budget_s:g} s) after '
                         f'expanding {expanded} nodes in {elapsed:.3f} s', expanded_nodes=expanded)
             _, ny, nz = self.shape
-            flat_path = _trace(goal, self._parent, self._delta, ny, nz, self._bricks,
-                               self._slots)
-            record = goal
-            if self._sparse:
-                record = int(_record(goal, ny, nz, self._bricks, self._slots))
-            cost = float(self._node_g[2 * record])
+            path, cost = _trace(goal, self._parent, self._node_g, self._delta, ny, nz,
+                                self._bricks, self._slots)
             elapsed = time.perf_counter() - began
-        path = np.stack(np.unravel_index(flat_path, self.shape), axis=-1).astype(np.int64)
-        return SearchResult(path_indices=path, cost_m=cost, expanded_nodes=expanded,
+        return SearchResult(path_indices=path, cost_m=float(cost), expanded_nodes=expanded,
                             search_time_s=elapsed)
+
+    def _step_costs(self, resolution: float, climb: float, descent: float) -> np.ndarray:
+        """The cost of each of the 26 steps [m] (module notes), kept for the next query."""
+        key = (resolution, climb, descent)
+        if self._step_cost_key != key:
+            cost = resolution * (_STEP_LENGTH + (climb - 1.0) * _UP + (descent - 1.0) * _DOWN)
+            cost.setflags(write=False)
+            self._step_cost_key, self._step_cost = key, cost
+        return self._step_cost
 
     def _unknown_arrays(self, unknown: Optional[Union[np.ndarray, SparseMask]], rate: float,
                         resolution: float) -> Tuple[np.ndarray, np.ndarray, np.ndarray,
@@ -1006,8 +1023,10 @@ class SearchWorkspace:
         """Put the start node on Dial's queue when it serves this query (``dijkstra``, every
         step costing more than 0) and set the bucket width; False when the heap serves it.
         Call after :meth:`_begin`."""
+        if code != _H_ZERO or not _DIAL:
+            return False
         cheapest = float(step_cost.min())
-        if code != _H_ZERO or not _DIAL or not cheapest > 0.0:
+        if not cheapest > 0.0:
             return False
         width = cheapest * _DIAL_WIDTH
         costliest = float(step_cost.max()) + 2.0 * float(unknown_step.max(initial=0.0))
@@ -1085,6 +1104,13 @@ def _lazy_zeros(count: int, dtype) -> np.ndarray:
     gigabytes it never used.
     """
     return lazy_zeros(count, dtype, _LAZY_BYTES)
+
+
+def _commit_pages(*arrays: np.ndarray) -> None:
+    """Write a zero into every page of the arrays (zeros already), so that the operating system
+    commits their memory now rather than at a search's first touches."""
+    for array in arrays:
+        array.view(np.uint8)[::_PAGE_BYTES] = 0
 
 
 def _checked_grid(blocked) -> Union[np.ndarray, SparseMask]:
