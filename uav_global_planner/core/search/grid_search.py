@@ -492,7 +492,7 @@ def _expand(blocked, mask_table, mask_pool, bricks, slots, node_g, node_int, par
                 # The chunk is read: the next one of the bucket, or of the next bucket.
                 reading, cur, free, avail = dial.next_chunk(queue[2], queue[3], reading, cur,
                                                             mask, free, avail, chunks)
-                taken = 0
+                taken = np.int64(0)
                 if reading < 0:
                     status = _EXHAUSTED
                     break
