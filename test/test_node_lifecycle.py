@@ -67,7 +67,7 @@ def plan_events(recorder, after: int = 0):
 def test_long_plan_keeps_services_responsive_and_goals_coalesce_then_sigint():
     domain_id = unique_domain_id()
     busy = start_planner(domain_id, wait=False, namespace=BUSY,
-                         parameters={'resolution': 0.1, 'max_planning_time': 60.0})
+                         parameters={'resolution': 0.07, 'max_planning_time': 60.0})
     idle = start_planner(domain_id, wait=False, namespace=f'{RUN_NAMESPACE}/idle')
     bad = start_planner(domain_id, wait=False, namespace=f'{RUN_NAMESPACE}/bad',
                         parameters={'algorithm': 'foo'})

@@ -138,7 +138,7 @@ def test_a_prior_map_file_is_a_map_and_is_kept_off(tmp_path) -> None:
 
 def test_a_frame_switch_during_a_long_plan_cancels_it_and_withdraws_the_old_plan() -> None:
     with planner_session(f'{RUN_NAMESPACE}/frames', {
-            'resolution': 0.1, 'algorithm': 'dijkstra', 'max_planning_time': 120.0,
+            'resolution': 0.07, 'algorithm': 'dijkstra', 'max_planning_time': 120.0,
             'plan_without_map': True}) as planner:
         values, _ = planner.plan_to([1.0, -4.0, 1.0], timeout_s=60.0)
         assert values['status'] == 'ok', values

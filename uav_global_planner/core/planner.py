@@ -423,11 +423,9 @@ class Planner:
         budget.enter(PlanStage.GRID)
         inflated = self._primary(budget.check)
         build_time = inflated.unreported_build_time()
-        # The search memory belongs to the grid: made (or pointed at a new grid) here, its time
-        # counted with the grid's build, so the search time is the search's.
-        prepared = time.perf_counter()
+        # The search memory belongs to the grid: made (or pointed at a new grid) here, so the
+        # search time is the search's (the plan's total time counts it).
         self._workspace_for(inflated)
-        build_time += time.perf_counter() - prepared
         budget.check()
         stops = np.vstack([start_point[None, :], via_points, goal_point[None, :]])
         nodes = self._check_stops(inflated, stops)

@@ -276,8 +276,7 @@ class PlanResult:
     resolution, safety_margin, adaptive_threshold : float
         delta, gamma and eta used [m].
     grid_build_time_s : float
-        Time spent building and inflating the grid for this request, and making the search's
-        memory for it [s]; 0 when cached.
+        Time spent building and inflating the grid for this request [s]; 0 when cached.
     shortcut_path : numpy.ndarray, shape (K, 3)
         Path after line-of-sight shortcutting [m] (equals ``path`` when shortcutting is off).
     shortcut_length_m : float
