@@ -31,7 +31,7 @@ START = np.array([0.0, -5.0, 0.0])  # the start parameter of config/planner.yaml
 
 @pytest.fixture(scope='module')
 def ros() -> Iterator[Dict[str, object]]:
-    """A planner with gamma = 0, and a busy one (delta 0.1 m, Dijkstra: multi-second plans)."""
+    """A planner with gamma = 0, and a busy one (delta 0.07 m, Dijkstra: multi-second plans)."""
     domain_id = unique_domain_id()
     processes = []
     client = None
@@ -40,7 +40,7 @@ def ros() -> Iterator[Dict[str, object]]:
         processes.append(start_planner(domain_id, wait=False, namespace=THIN, parameters={
             'safety_margin': 0.0, 'plan_without_map': True}))
         processes.append(start_planner(domain_id, wait=False, namespace=BUSY, parameters={
-            'resolution': 0.1, 'algorithm': 'dijkstra', 'max_planning_time': 60.0,
+            'resolution': 0.07, 'algorithm': 'dijkstra', 'max_planning_time': 60.0,
             'plan_without_map': True}))
         for process in processes:
             process.wait_for_output(READY_TEXT, STARTUP_TIMEOUT_S)

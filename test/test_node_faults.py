@@ -64,7 +64,7 @@ SECOND_OBSTACLES = ObstacleSet([Box([-4.0, -2.0, 0.0], [4.0, -1.0, 12.0]),
 @pytest.fixture(scope='module')
 def ros(tmp_path_factory) -> Iterator[Dict[str, object]]:
     """A planner with the shipped parameter file and a map publisher, and a busy planner
-    (delta 0.1 m, Dijkstra: multi-second plans)."""
+    (delta 0.07 m, Dijkstra: multi-second plans)."""
     domain_id = unique_domain_id()
     second_scene = tmp_path_factory.mktemp('faults') / 'second.yaml'
     second_scene.write_text(SECOND_SCENE)
@@ -74,7 +74,7 @@ def ros(tmp_path_factory) -> Iterator[Dict[str, object]]:
     try:
         processes.append(start_planner(domain_id, wait=False, namespace=MAPPED))
         processes.append(start_planner(domain_id, wait=False, namespace=BUSY, parameters={
-            'resolution': 0.1, 'algorithm': 'dijkstra', 'max_planning_time': 60.0}))
+            'resolution': 0.07, 'algorithm': 'dijkstra', 'max_planning_time': 60.0}))
         processes.append(start_scene_publisher(domain_id, 'paper_medium', MAPPED))
         state['planner'], state['busy'], state['publisher'] = processes
         for process in processes[:2]:
