@@ -9,16 +9,15 @@ import time
 from typing import Dict, Iterator
 
 from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Path as PathMsg
 import numpy as np
 import pytest
 from trajectory_msgs.msg import MultiDOFJointTrajectory
 from visualization_msgs.msg import Marker, MarkerArray
 
-from ros_harness import (INPUT_QOS, LATCHED_QOS, marker, marker_array, min_clearance, odom_msg,
-                         PlannerClient, plans_after_withdrawal, pose_msg, READY_TEXT, RosClient,
-                         RUN_NAMESPACE, start_planner, STARTUP_TIMEOUT_S, unique_domain_id)
+from ros_harness import (LATCHED_QOS, marker, marker_array, min_clearance, odom_msg, PlannerClient,
+                         plans_after_withdrawal, pose_msg, READY_TEXT, RosClient, RUN_NAMESPACE,
+                         start_planner, STARTUP_TIMEOUT_S, unique_domain_id)
 from uav_global_planner.core.io.scene import find_scene, load_scene
 from uav_global_planner.core.map.obstacles import ObstacleSet, Sphere
 from uav_global_planner.ros import conversions as conv
@@ -169,38 +168,6 @@ def test_required_sources_are_waited_for(ros) -> None:
     # Read at start-up: a read-only parameter, refused by rclpy on a running node.
     assert not result.successful and 'read-only parameter' in result.reason, result.reason
     assert planner.params.get(['cloud_qos_reliability']) == {'cloud_qos_reliability': 'reliable'}
-
-
-def test_a_goal_sent_with_the_first_map_is_planned_on_that_map() -> None:
-    """A mapping stack and a goal sender that start with the planner: the map and, 20 ms
-    later, the goal reach a node that is still loading its kernels or building that first map
-    (a fine grid: 6 M nodes). The goal is planned on that map, not refused for want of one."""
-    namespace = f'{RUN_NAMESPACE}/racing'
-    domain_id = unique_domain_id()
-    process = start_planner(domain_id, wait=False, namespace=namespace,
-                            parameters={'resolution': 0.1})
-    client = RosClient(domain_id)
-    try:
-        planner = PlannerClient(client, namespace, client.record(DiagnosticArray, '/diagnostics'),
-                                process)
-        # Both publishers are matched as soon as the node has made its subscriptions, before
-        # it is ready.
-        obstacles = client.publisher(MarkerArray, planner.prefix + 'obstacles',
-                                     INPUT_QOS['obstacles'], timeout_s=STARTUP_TIMEOUT_S)
-        goals = client.publisher(PoseStamped, planner.prefix + 'goal_pose',
-                                 INPUT_QOS['goal_pose'], timeout_s=STARTUP_TIMEOUT_S)
-        obstacles.publish(scene_markers())
-        time.sleep(0.02)
-        goals.publish(pose_msg(GOAL, 'map'))
-        values = planner.wait_diag(0, 'plan', STARTUP_TIMEOUT_S,
-                                   check=lambda v: v['reason'] == 'new goal')
-        assert values['status'] == 'ok', values
-        assert 'obstacles: 1 accepted' in values['map_sources'], values
-        assert min_clearance(points_of(planner.plan_for(values)), SCENE.obstacles) >= GAMMA - TOL
-        process.wait_for_output(READY_TEXT, STARTUP_TIMEOUT_S)
-    finally:
-        client.close()
-        process.kill()
 
 
 # ------------------------------------------------------------------------------ plan in force
