@@ -15,10 +15,9 @@ import pytest
 from trajectory_msgs.msg import MultiDOFJointTrajectory
 from visualization_msgs.msg import Marker, MarkerArray
 
-from ros_harness import (LATCHED_QOS, marker, marker_array, min_clearance, odom_msg,
-                         planner_session, PlannerClient, plans_after_withdrawal, pose_msg,
-                         READY_TEXT, RosClient, RUN_NAMESPACE, start_planner, STARTUP_TIMEOUT_S,
-                         unique_domain_id)
+from ros_harness import (LATCHED_QOS, marker, marker_array, min_clearance, odom_msg, PlannerClient,
+                         plans_after_withdrawal, pose_msg, READY_TEXT, RosClient, RUN_NAMESPACE,
+                         start_planner, STARTUP_TIMEOUT_S, unique_domain_id)
 from uav_global_planner.core.io.scene import find_scene, load_scene
 from uav_global_planner.core.map.obstacles import ObstacleSet, Sphere
 from uav_global_planner.ros import conversions as conv
@@ -169,34 +168,6 @@ def test_required_sources_are_waited_for(ros) -> None:
     # Read at start-up: a read-only parameter, refused by rclpy on a running node.
     assert not result.successful and 'read-only parameter' in result.reason, result.reason
     assert planner.params.get(['cloud_qos_reliability']) == {'cloud_qos_reliability': 'reliable'}
-
-
-def test_a_goal_that_comes_while_the_first_map_is_applied_is_planned_on_it() -> None:
-    """A goal that comes while the node applies its first map (1.5 M points on a 48 M-node
-    grid: seconds) is judged once that map is in, on it, not refused for want of one. A
-    parameter request answered before the map is in shows that the goal came while it was
-    being applied."""
-    rng = np.random.default_rng(5)
-    # A volume of points west of every straight line from the start [0, -5, 0] to the goal.
-    points = rng.uniform([-9.5, -9.5, 0.5], [-3.0, 9.5, 14.5], (1_500_000, 3))
-    with planner_session(f'{RUN_NAMESPACE}/first_map', {'resolution': 0.05}) as planner:
-        planner.params.get(['safety_margin'])
-        mark = planner.diagnostics.mark()
-        planner.publish('obstacle_cloud', conv.points_to_cloud(points, 'map', 1))
-        time.sleep(0.3)  # delivered: the intake is building the map
-        sent_ns = time.time_ns()
-        planner.publish('goal_pose', pose_msg(GOAL))
-        assert planner.params.get(['safety_margin'])['safety_margin'] == GAMMA
-        assert planner.diag_events(mark, 'map_status') == [], (
-            'the map was in before the parameter answer; the test proves nothing')
-        values = planner.wait_diag(mark, 'plan', 120.0, check=lambda v: v['reason'] == 'new goal')
-        assert values['status'] == 'ok', values
-        assert 'obstacle_cloud: 1 accepted' in values['map_sources'], values
-        (status,) = planner.diag_events(mark, 'map_status')[:1]
-        assert int(status['_stamp']) > sent_ns, 'the map was in before the goal was sent'
-        path = points_of(planner.plan_for(values))
-        assert np.allclose(path[-1], GOAL)
-        assert np.min(path[:, 0]) > -3.0 + GAMMA
 
 
 # ------------------------------------------------------------------------------ plan in force

@@ -1,7 +1,6 @@
 """Goal and start inputs of the planner node: a part of the node, run on the executor.
 
-``goal_pose`` sets the active goal (refused while the map is missing; judged once the map
-messages received before it are applied, if some are still pending), ``odom`` and
+``goal_pose`` sets the active goal (refused while the map is missing), ``odom`` and
 ``start_pose`` the start (the twist and heading of ``odom`` also go to the takeover predictor,
 for replans in flight); a refused message keeps the previous state and is reported on the
 log and ``/diagnostics``.
@@ -29,13 +28,16 @@ from uav_global_planner.ros.takeover import odometry_velocity, TakeoverPredictor
 #: Diagnostics status of a goal refused because the map is missing.
 NO_MAP_STATUS = 'no_map'
 
+#: How long a goal waits for map messages received before it to be applied (at start-up the
+#: intake may still be building the first map) [s].
+_PENDING_MAP_WAIT_S = 5.0
+
 
 class CommandInputs:
     """The ``goal_pose``, ``odom`` and ``start_pose`` subscriptions.
 
-    No lock of its own: an accepted goal or position goes to the planning inputs (their
-    condition guards it), odometry's motion to the takeover predictor (its own lock); its one
-    state is the count of goals received.
+    No state and no lock of its own: an accepted goal or position goes to the planning inputs
+    (their condition guards it), odometry's motion to the takeover predictor (its own lock).
 
     Parameters
     ----------
@@ -56,9 +58,6 @@ class CommandInputs:
         self._intake = intake
         self._diagnostics = diagnostics
         self._takeover = takeover
-        # Goals received so far: a goal judged later (after_pending_maps) checks it is still
-        # the newest (written on the executor, read on the intake thread: one int).
-        self._goals_received = 0
         self._goal_sub = node.create_subscription(PoseStamped, 'goal_pose', self.on_goal,
                                                   COMMAND_QOS)
         self._odom_sub = node.create_subscription(Odometry, 'odom', self._on_odom, SENSOR_QOS)
@@ -88,26 +87,16 @@ class CommandInputs:
             self._diagnostics.refuse(topic, error)
             return
         # The sources count as delivered only once the map holding them is installed, so an
-        # accepted goal is planned on that map. A goal that finds no map while map messages
-        # received before it are still being applied (both queued while the node started) is
-        # judged once they are, on the intake thread, without holding up the executor; a newer
-        # goal supersedes it.
-        self._goals_received += 1
-        serial = self._goals_received
-        if self._intake.map_missing(settings) is None:
+        # accepted goal is planned on that map. A map received just before the goal (both
+        # queued while the node started) is waited for, not taken for no map.
+        missing = self._intake.map_missing(settings)
+        if missing is not None:
+            self._intake.wait_for_pending_maps(_PENDING_MAP_WAIT_S)
+            missing = self._intake.map_missing(settings)
+        if missing is None:
             self._inputs.new_goal(position, orientation)
-            return
-
-        def judge() -> None:
-            if serial != self._goals_received:
-                return
-            now = self._inputs.current_settings()
-            missing = self._intake.map_missing(now)
-            if missing is None:
-                self._inputs.new_goal(position, orientation)
-            else:
-                self._refuse_goal(position, now, missing)
-        self._intake.after_pending_maps(judge)
+        else:
+            self._refuse_goal(position, settings, missing)
 
     def _refuse_goal(self, position: np.ndarray, settings: NodeSettings, reason: str) -> None:
         """A goal the node will not plan (no map yet): an ERROR plan status with the reason."""

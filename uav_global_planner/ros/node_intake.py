@@ -13,7 +13,7 @@ from dataclasses import replace
 import threading
 import time
 import traceback
-from typing import Any, Callable, Dict, Hashable, List, Mapping, Optional, Tuple
+from typing import Any, Dict, Hashable, List, Mapping, Optional, Tuple
 
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message
@@ -90,8 +90,6 @@ class MapIntake:
         self._cloud_latencies: List[float] = []
         # The intake thread is applying map messages it took from the inbox.
         self._maps_in_step = False
-        # What to call once no map message is pending (after_pending_maps).
-        self._after_maps: Optional[Callable[[], None]] = None
         # The intake thread's.
         self._builder = builder
         self._markers: Dict[MarkerKey, Obstacle] = {}
@@ -168,28 +166,18 @@ class MapIntake:
         it: later plans then do not inflate it themselves)."""
         self._builder.want_fallback = True
 
-    def after_pending_maps(self, judge: Callable[[], None]) -> None:
-        """Call ``judge`` once the map messages received so far are applied: at once (here)
-        when none is waiting or being applied, else on the intake thread when its step ends
-        with none left (a goal that arrives just after the map's first message, before the
-        intake has built it, is then judged on that map). A newer ``judge`` replaces one still
-        waiting; none is called once the node stops."""
+    def wait_for_pending_maps(self, timeout_s: float) -> None:
+        """Wait at most ``timeout_s`` [s] while map messages received so far are still being
+        applied and no map source has delivered yet (a goal that arrives just after the map's
+        first message, before the intake has built it, is then judged on that map)."""
+        def settled() -> bool:
+            pending = (bool(self._inbox.markers) or self._inbox.cloud is not None
+                       or self._maps_in_step)
+            delivered = any(self._sources[name].delivered for name in MAP_SOURCES)
+            return self._inbox.stopping or delivered or not pending
+
         with self._inbox_lock:
-            if self._maps_pending():
-                self._after_maps = judge
-                return
-        judge()
-
-    def _maps_pending(self) -> bool:
-        """Map messages wait in the inbox or are being applied (hold ``_inbox_lock``)."""
-        return bool(self._inbox.markers) or self._inbox.cloud is not None or self._maps_in_step
-
-    def _settled_judge(self) -> Optional[Callable[[], None]]:
-        """The waiting judge, taken, once no map message is pending (hold ``_inbox_lock``)."""
-        if self._after_maps is None or self._maps_pending() or self._inbox.stopping:
-            return None
-        judge, self._after_maps = self._after_maps, None
-        return judge
+            self._inbox_lock.wait_for(settled, timeout_s)
 
     # --------------------------------------------------------------------------- reports
 
@@ -322,14 +310,7 @@ class MapIntake:
                     self._inputs.shapes_applied(airspace_serial)
                 with self._inbox_lock:
                     self._maps_in_step = False
-                    judge = self._settled_judge()
                     self._inbox_lock.notify_all()
-                if judge is not None:
-                    try:
-                        judge()
-                    except Exception as error:  # noqa: BLE001 - a bug must not stop the intake
-                        self._log.error(f'judging a goal after the map failed: {error!r}\n'
-                                        f'{traceback.format_exc()}')
 
     def _deserialize(self, data: bytes, msg_type: Any, source: str) -> Optional[Any]:
         try:
